@@ -1,0 +1,4 @@
+"""Readers: every supported scan format → :class:`~anatomesh.core.volume.Volume`."""
+from .load import load
+
+__all__ = ["load"]
