@@ -157,34 +157,17 @@ def face_components(faces: np.ndarray, n_vertices: int) -> Tuple[int, np.ndarray
     m = f.shape[0]
     if m == 0:
         return 0, np.zeros(0, np.int64)
-    # vertex-face bipartite graph: union faces sharing a vertex via scipy-free label propagation
-    parent = np.arange(n_vertices, dtype=np.int64)
-    a = np.r_[f[:, 0], f[:, 1]]
-    b = np.r_[f[:, 1], f[:, 2]]
-    parent = _connected_vertex_roots(a, b, n_vertices)
+    parent = _connected_vertex_roots(np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]], n_vertices)
     roots = parent[f[:, 0]]
     uniq, lab = np.unique(roots, return_inverse=True)
     return int(uniq.size), lab.astype(np.int64)
 
 
 def _connected_vertex_roots(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """Component representative of each vertex for the graph with edges (a[i], b[i])."""
-    label = np.arange(n, dtype=np.int64)
-    while True:  # min-label propagation with pointer jumping; converges in O(log n) rounds
-        la, lb = label[a], label[b]
-        m = np.minimum(la, lb)
-        new = label.copy()
-        np.minimum.at(new, a, m)
-        np.minimum.at(new, b, m)
-        new = new[new]
-        while True:
-            nn = new[new]
-            if np.array_equal(nn, new):
-                break
-            new = nn
-        if np.array_equal(new, label):
-            return label
-        label = new
+    """Component representative (smallest member) of each of ``n`` nodes, edges (a[i], b[i])."""
+    from ._graph_kernels import union_find_roots
+
+    return union_find_roots(np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64), int(n))
 
 
 @dataclass
@@ -250,7 +233,6 @@ def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     if m == 0:
         return np.zeros(0, np.int64)
     # corner c = (face, k): vertex f[face,k]; its two edges at that vertex go to f[face,k+1], f[face,k-1]
-    face_id = np.repeat(np.arange(m), 3)
     center = f.ravel()
     nxt = np.roll(f, -1, axis=1).ravel()
     prv = np.roll(f, 1, axis=1).ravel()
@@ -266,7 +248,6 @@ def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     # count distinct fan roots per centre vertex
     pairs = np.unique(np.stack([center, roots], axis=1), axis=0)
     verts, nfans = np.unique(pairs[:, 0], return_counts=True)
-    del face_id
     return verts[nfans > 1]
 
 

@@ -1,0 +1,131 @@
+"""The `anatomesh` command line end to end on real data: inspect, mesh, bad input."""
+import json
+import subprocess
+import sys
+
+import nibabel as nib
+import numpy as np
+import pytest
+
+from anatomesh.core.cli import main
+from anatomesh.core.export import read_stl
+from conftest import SAMPLE, shared
+
+SEG = SAMPLE / "example_seg.nii.gz"
+CT = SAMPLE / "example_ct_sm.nii.gz"
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_inspect_label_map_json(capsys):
+    code, out, err = run(capsys, "inspect", SEG, "--json")
+    assert code == 0, err
+    facts = json.loads(out)
+    assert facts["shape"] == [122, 101, 30]
+    assert facts["spacing"] == pytest.approx([3.0, 3.0, 3.0])
+    assert facts["space"] == "RAS"
+    img = nib.load(str(SEG))
+    np.testing.assert_allclose(facts["affine"], img.affine, atol=1e-5)
+    labels = {lab["value"]: lab for lab in facts["labels"]}
+    data = np.asarray(img.dataobj)
+    assert len(labels) == len(np.unique(data)) - 1 == 41
+    liver = labels[5]
+    assert liver["name"] == "liver"  # from the sidecar label_names_*.json next to the sample
+    assert liver["voxels"] == int((data == 5).sum())
+    assert liver["volume_mm3"] == pytest.approx(liver["voxels"] * 27.0)
+    assert {"dtype", "min", "max"} <= set(facts)
+
+
+def test_inspect_ct_text_has_histogram_peaks(capsys):
+    code, out, err = run(capsys, "inspect", CT)
+    assert code == 0, err
+    assert "RAS" in out and "122 x 101 x 30" in out and "histogram" in out
+    peaks = out.split("peaks", 1)[1].splitlines()[0]
+    assert "soft tissue" in peaks and ("air" in peaks or "fat" in peaks)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["inspect", "/nonexistent/scan.nii.gz"], ["/nonexistent/scan.nii.gz", "no such file"]),
+    (["mesh", str(SEG), "--out", "{tmp}", "--labels", "livr"], ["livr", "liver"]),
+    (["mesh", str(CT), "--out", "{tmp}"], ["--level"]),
+    (["mesh", str(SEG), "--out", "{tmp}", "--format", "fbx"], ["fbx", "stl"]),
+])
+def test_bad_input_is_one_line_exit_2(capsys, tmp_path, argv, words):
+    code, out, err = run(capsys, *[a.replace("{tmp}", str(tmp_path / "o")) for a in argv])
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in err
+    for w in words:
+        assert w in lines[0]
+    print(lines[0])
+
+
+def test_mesh_label_subset_lands_on_the_voxels(capsys, tmp_path):
+    out_dir = tmp_path / "out"
+    code, out, err = run(capsys, "mesh", SEG, "--out", out_dir, "--labels", "liver,spleen,3",
+                         "--format", "stl,ply")
+    assert code == 0, err
+    rep = json.loads((out_dir / "report.json").read_text())
+    assert rep["space"] == "RAS" and rep["units"] == "mm"
+    assert rep["input"]["shape"] == [122, 101, 30]
+    surf = {s["name"]: s for s in rep["surfaces"]}
+    assert set(surf) == {"liver", "spleen", "kidney_left"}
+    img = nib.load(str(SEG))
+    data = np.asarray(img.dataobj)
+    for name, value in (("liver", 5), ("spleen", 1)):
+        s = surf[name]
+        assert s["closed"] and s["manifold"] and s["genus"] is not None
+        assert s["volume_mm3"] > 0
+        tri = read_stl(out_dir / s["files"]["stl"])
+        assert b"SPACE=RAS" in tri["header"]
+        pts = tri["triangles"].reshape(-1, 3)
+        # the mesh lies within the label's voxel extent (voxel centres +- half a voxel, 3 mm)
+        idx = np.argwhere(data == value)
+        corners = np.array([[a, b, c] for a in (idx[:, 0].min() - .5, idx[:, 0].max() + .5)
+                            for b in (idx[:, 1].min() - .5, idx[:, 1].max() + .5)
+                            for c in (idx[:, 2].min() - .5, idx[:, 2].max() + .5)])
+        world = nib.affines.apply_affine(img.affine, corners)
+        assert (pts >= world.min(0) - 1e-3).all() and (pts <= world.max(0) + 1e-3).all()
+        assert (out_dir / s["files"]["ply"]).exists()
+    # refusing to overwrite, then allowed with --overwrite
+    code, _, err = run(capsys, "mesh", SEG, "--out", out_dir, "--labels", "liver")
+    assert code == 2 and "--overwrite" in err
+    code, _, err = run(capsys, "mesh", SEG, "--out", out_dir, "--labels", "liver", "--overwrite")
+    assert code == 0, err
+
+
+def test_mesh_space_lps_negates_x_and_y(capsys, tmp_path):
+    for space in ("RAS", "LPS"):
+        code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path / space, "--labels", "spleen",
+                           "--space", space)
+        assert code == 0, err
+    ras = read_stl(tmp_path / "RAS" / "spleen.stl")["triangles"]
+    lps = read_stl(tmp_path / "LPS" / "spleen.stl")["triangles"]
+    assert b"SPACE=LPS" in read_stl(tmp_path / "LPS" / "spleen.stl")["header"]
+    np.testing.assert_allclose(lps[..., :2], -ras[..., :2], atol=1e-4)
+    np.testing.assert_allclose(lps[..., 2], ras[..., 2], atol=1e-4)
+
+
+def test_mesh_head_ct_dicom_skin_and_bone_closed(capsys, tmp_path):
+    code, out, err = run(capsys, "mesh", shared("slicer_ctheadaxial"), "--out", tmp_path,
+                         "--level", "500", "--level", "1150", "--keep-largest")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["input"]["shape"] == [64, 64, 93]
+    assert len(rep["surfaces"]) == 2
+    for s in rep["surfaces"]:
+        assert s["closed"] and s["manifold"] and s["components"] == 1
+        assert s["degenerate_faces"] == 0
+    skin, bone = sorted(rep["surfaces"], key=lambda s: s["value"])
+    assert skin["volume_mm3"] > bone["volume_mm3"] > 0
+
+
+def test_console_script_entry_point(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "anatomesh.core.cli", "inspect", str(SEG), "--json"],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["space"] == "RAS"
