@@ -54,7 +54,11 @@ def describe(volume: Volume) -> Dict:
     if volume.is_label_map:
         facts["labels"] = label_facts(volume)
     else:
-        facts["histogram"] = histogram(vals, volume.meta.get("modality", ""))
+        modality = str(volume.meta.get("modality", ""))
+        if not modality and looks_like_hounsfield(vals):
+            modality = "CT"
+            facts["modality"] = "CT (guessed from the Hounsfield value range)"
+        facts["histogram"] = histogram(vals, modality)
     return facts
 
 
@@ -101,6 +105,15 @@ def histogram(values: np.ndarray, modality: str = "") -> Dict:
             peak["tissue"] = ct_class(centre)
         peaks.append(peak)
     return {"edges": [round(float(e), 3) for e in edges], "counts": counts.tolist(), "peaks": peaks}
+
+
+def looks_like_hounsfield(values: np.ndarray) -> bool:
+    """True when values look like CT Hounsfield units: air near -1000 and a soft-tissue body."""
+    if values.size == 0 or values.dtype.kind not in "iuf":
+        return False
+    lo = float(values.min())
+    hi = float(values.max())
+    return -3100.0 <= lo <= -900.0 and 100.0 <= hi <= 40000.0
 
 
 def ct_class(hu: float) -> str:
