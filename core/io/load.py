@@ -2,7 +2,7 @@
 
 Dispatch by what the path is: a folder or a list of files → DICOM series; ``.nii``/``.nii.gz``
 → NIfTI; ``.nrrd``/``.nhdr`` (including 3D Slicer's ``.seg.nrrd``) → NRRD; a single ``.dcm`` (or a
-file starting with the DICOM preamble) → the series in its folder.
+file starting with the DICOM preamble) → that file's series, read from its folder.
 """
 from __future__ import annotations
 
@@ -32,8 +32,8 @@ def load(path: Union[PathLike, Sequence[PathLike]], *, series: Optional[str] = N
         A DICOM folder (searched recursively), a list of DICOM files, a ``.nii``/``.nii.gz``,
         ``.nrrd``/``.nhdr`` or ``.seg.nrrd`` file.
     series : str, optional
-        DICOM only: SeriesInstanceUID or 1-based series number (as listed in the error message
-        when a folder holds several series).
+        DICOM only, when a folder holds several series: tried as the 1-based index in the listed
+        order (as the error message lists them), then as SeriesNumber, then as SeriesInstanceUID.
     volume_index : int, optional
         NIfTI only: which volume of a 4D image to read.
     labels : path, optional
@@ -73,7 +73,7 @@ def load(path: Union[PathLike, Sequence[PathLike]], *, series: Optional[str] = N
             vol = read_nrrd(p, labels=labels, label_map=label_map)
         elif name.endswith(".dcm") or _has_dicom_preamble(p):
             from .dicom import read_dicom
-            vol = read_dicom(p.parent, series=series, progress=progress)
+            vol = read_dicom(p, series=series, progress=progress)  # reads that file's series
         else:
             raise AnatomeshError(
                 "unsupported file type; give a DICOM folder, a .nii/.nii.gz, .nrrd/.nhdr or "
