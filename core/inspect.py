@@ -54,11 +54,10 @@ def describe(volume: Volume) -> Dict:
     if volume.is_label_map:
         facts["labels"] = label_facts(volume)
     else:
-        modality = str(volume.meta.get("modality", ""))
-        if not modality and looks_like_hounsfield(vals):
-            modality = "CT"
+        hounsfield = looks_like_hounsfield(vals)
+        if hounsfield and not volume.meta.get("modality"):
             facts["modality"] = "CT (guessed from the Hounsfield value range)"
-        facts["histogram"] = histogram(vals, modality)
+        facts["histogram"] = histogram(vals, hounsfield)
     return facts
 
 
@@ -80,16 +79,17 @@ def label_facts(volume: Volume) -> List[Dict]:
     return out
 
 
-def histogram(values: np.ndarray, modality: str = "") -> Dict:
+def histogram(values: np.ndarray, hounsfield: bool = False) -> Dict:
     """A histogram of ``values`` with its peaks (local maxima of the smoothed counts).
 
-    CT (modality "CT") uses fixed bins from -1100 to 2000 HU so peaks can be named (air, fat, soft
-    tissue, bone); other scans use bins between the 0.1 and 99.9 percentiles.
+    Values in Hounsfield units (CT with air near -1000) use fixed bins from -1100 to 2000 HU so peaks
+    can be named (air, fat, soft tissue, bone); other scans (MR, CT stored without rescale) use bins
+    between the 0.1 and 99.9 percentiles and unnamed peaks.
     """
     v = np.asarray(values).ravel()
     if v.size > 4_000_000:  # a strided sample is plenty for a histogram
         v = v[:: v.size // 4_000_000 + 1]
-    is_ct = str(modality).upper() == "CT"
+    is_ct = hounsfield
     if is_ct:
         lo, hi = -1100.0, 2000.0
     else:

@@ -5,6 +5,7 @@ same fields); :func:`run` executes it with a progress callback and returns a :cl
 """
 from __future__ import annotations
 
+import difflib
 import json
 import re
 import time
@@ -128,7 +129,8 @@ def select_labels(volume: Volume, wanted: Union[str, Sequence[Union[int, str]]])
             continue
         key = str(w).strip().lower()
         if key not in by_name:
-            close = [n for n in by_name if key in n or n in key][:8]
+            close = difflib.get_close_matches(key, list(by_name), n=5, cutoff=0.6)
+            close += [n for n in by_name if key in n and n not in close][:5]
             hint = f"; did you mean {', '.join(close)}?" if close else \
                 "; run `anatomesh inspect` to list the labels"
             raise AnatomeshError(f"no label named {w!r}{hint}", volume.meta.get("source"))
