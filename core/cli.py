@@ -61,7 +61,19 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--keep-largest", action="store_true", help="keep only the largest component per surface")
     m.add_argument("--min-component", type=float, default=0.0, metavar="MM3",
                    help="drop components smaller than this volume in mm³")
-    m.add_argument("--smooth", default="none", help="smoothing method (none)")
+    m.add_argument("--smooth", default="organ",
+                   help="smoothing preset or filter: organ (default: Taubin kept inside each voxel cell, "
+                        "volumes restored), light, strong, taubin, laplacian, hc, mean_curvature, "
+                        "normal_mean, normal_median, none (raw surface)")
+    m.add_argument("--iterations", type=int, help="smoothing iterations (overrides the preset)")
+    m.add_argument("--lambda", dest="lam", type=float, help="smoothing step λ (overrides the preset)")
+    m.add_argument("--mu", type=float, help="Taubin's negative step μ (overrides the preset)")
+    m.add_argument("--max-deviation", type=float, metavar="MM",
+                   help="no vertex moves further than this from the unsmoothed surface")
+    m.add_argument("--damping-distance", type=float, metavar="MM",
+                   help="smooth less where another structure is closer than this (Mönch et al. 2010)")
+    m.add_argument("--staircase", choices=("auto", "on", "off"), default="auto",
+                   help="extra slice-axis smoothing for thick slices (auto: slice >= 1.5x in-plane)")
     m.add_argument("--report", help="report path (default OUT/report.json)")
     m.add_argument("--overwrite", action="store_true", help="replace existing output files")
     m.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
@@ -99,7 +111,9 @@ def cmd_mesh(args) -> int:
         input=_path_arg(args.path), out_dir=args.out, series=args.series, volume_index=args.volume_index,
         label_table=args.label_table, labels=_split(args.labels) if args.labels != "all" else "all",
         levels=args.level, space=args.space, cap=args.cap, keep_largest=args.keep_largest,
-        min_component_mm3=args.min_component, smooth=args.smooth,
+        min_component_mm3=args.min_component, smooth=args.smooth, iterations=args.iterations,
+        lam=args.lam, mu=args.mu, max_deviation=args.max_deviation,
+        damping_distance=args.damping_distance, staircase=args.staircase,
         formats=_formats(args.format), report=args.report, overwrite=args.overwrite)
     result = run(recipe, TerminalProgress("meshing"))
     n_closed = sum(1 for s in result.report["surfaces"] if s["closed"])

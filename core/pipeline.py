@@ -24,6 +24,7 @@ from .progress import Progress, report, sub
 from .volume import Volume
 
 SMOOTH_NONE = "none"
+SMOOTH_DEFAULT = "organ"  # core.smooth.DEFAULT: Taubin in the voxel cell, volumes kept
 
 
 @dataclass
@@ -34,6 +35,10 @@ class Recipe:
     ``levels``: isovalues for scalar scans (required for them).
     ``space``: the space every written vertex is in ("RAS" or "LPS").
     ``formats``: any of "stl", "ply", "obj".
+    ``smooth``: a preset or filter of :mod:`anatomesh.core.smooth` ("organ" by default, "none" keeps
+    the raw surface); ``iterations``/``lam``/``mu`` override the preset, ``max_deviation`` (mm) caps
+    every vertex's displacement, ``damping_distance`` (mm) enables distance-aware damping,
+    ``staircase`` ("auto", "on", "off") the extra slice-axis passes for thick slices.
     """
 
     input: Union[str, List[str]] = ""
@@ -47,7 +52,13 @@ class Recipe:
     cap: bool = True
     keep_largest: bool = False
     min_component_mm3: float = 0.0
-    smooth: str = SMOOTH_NONE
+    smooth: str = SMOOTH_DEFAULT
+    iterations: Optional[int] = None
+    lam: Optional[float] = None
+    mu: Optional[float] = None
+    max_deviation: Optional[float] = None
+    damping_distance: Optional[float] = None
+    staircase: str = "auto"
     formats: List[str] = field(default_factory=lambda: ["stl"])
     report: Optional[str] = None
     overwrite: bool = False
@@ -71,11 +82,14 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 
     t1 = time.perf_counter()
     report(progress, 0.25, "extracting surfaces")
-    surfaces = extract(volume, recipe, sub(progress, 0.25, 0.7))
+    raw = extract(volume, recipe, sub(progress, 0.25, 0.5))
     timings["extract_s"] = time.perf_counter() - t1
 
-    if recipe.smooth not in (SMOOTH_NONE, None, ""):
-        raise AnatomeshError(f"smoothing method {recipe.smooth!r} is not available yet; use --smooth none")
+    t2 = time.perf_counter()
+    report(progress, 0.5, f"smoothing ({recipe.smooth})")
+    smoothed, smoothing = smooth(raw, volume, recipe, sub(progress, 0.5, 0.7))
+    surfaces = smoothed.shells() if hasattr(smoothed, "shells") else smoothed
+    timings["smooth_s"] = time.perf_counter() - t2
 
     entries = []
     for m in surfaces:
@@ -91,7 +105,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
             write_mesh(m, path, fmt)
         report(progress, 0.75 + 0.2 * (i + 1) / max(1, len(surfaces)), f"wrote {m.name}")
     timings["total_s"] = time.perf_counter() - t0
-    rep = build_report(volume, recipe, surfaces, entries, files, report_path, timings)
+    rep = build_report(volume, recipe, surfaces, entries, files, report_path, timings, smoothing)
     report_path.parent.mkdir(parents=True, exist_ok=True)
     report_path.write_text(json.dumps(rep, indent=2))
     report(progress, 1.0, "done")
@@ -99,8 +113,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 
 
 # ---------------------------------------------------------------------------------------------
-def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None) -> List[Mesh]:
-    """Isosurfaces (scalar scan, one per level) or label shells (label map), in ``volume.space``."""
+def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None):
+    """A SurfaceSet (label map: conforming shells) or a list of isosurface Meshes (scalar scan)."""
     from .extract import isosurfaces, label_surfaces
 
     if volume.is_label_map:
@@ -108,12 +122,48 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
             raise AnatomeshError("--level is for scalar scans; this is a label map (use --labels)",
                                  volume.meta.get("source"))
         values = select_labels(volume, recipe.labels)
-        sset = label_surfaces(volume, values=values, progress=progress)
-        return sset.shells()
+        return label_surfaces(volume, values=values, progress=progress)
     if not recipe.levels:
         raise AnatomeshError("this is a scalar scan: give one or more isovalues with --level "
                              "(see `anatomesh inspect` for the histogram peaks)", volume.meta.get("source"))
     return isosurfaces(volume, list(recipe.levels), cap=recipe.cap, progress=progress)
+
+
+def smooth(surfaces, volume: Volume, recipe: Recipe, progress: Optional[Progress] = None):
+    """Smooth a SurfaceSet (seams move once, for both labels) or each isosurface Mesh.
+
+    Returns ``(smoothed, {value: per-shell measures})`` plus the method and parameters used, via
+    :func:`anatomesh.core.smooth.smooth_surfaces` (which measures volume change and the distance
+    to the unsmoothed surface).
+    """
+    from .smooth import smooth_surfaces
+
+    method = recipe.smooth or SMOOTH_NONE
+    if method == SMOOTH_NONE:
+        return surfaces, {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
+    params = {k: v for k, v in (("iterations", recipe.iterations), ("lam", recipe.lam),
+                                ("mu", recipe.mu)) if v is not None}
+    options = dict(max_deviation=recipe.max_deviation, damping_distance=recipe.damping_distance,
+                   staircase={"auto": "auto", "on": True, "off": False}[recipe.staircase])
+    if hasattr(surfaces, "shells"):
+        out, rep = smooth_surfaces(surfaces, method, progress=progress, **options, **params)
+        return out, rep.as_dict()
+    meshes, merged = [], None
+    for i, m in enumerate(surfaces):
+        sm, rep = smooth_surfaces(m, method, affine=volume.affine, progress=sub(
+            progress, i / len(surfaces), (i + 1) / len(surfaces)), **options, **params)
+        sm.meta = dict(m.meta)
+        meshes.append(sm)
+        d = rep.as_dict()
+        shell = next(iter(d["shells"].values()), None)
+        if merged is None:
+            merged = dict(d, shells={})
+        else:
+            merged["warnings"] += d["warnings"]
+            merged["seconds"] += d["seconds"]
+        if shell is not None:
+            merged["shells"][str(m.value)] = shell
+    return meshes, merged or {"method": method, "params": {}, "shells": {}, "warnings": []}
 
 
 def select_labels(volume: Volume, wanted: Union[str, Sequence[Union[int, str]]]) -> Optional[List[int]]:
@@ -182,14 +232,23 @@ def _refuse_overwrite(paths: List[Path], overwrite: bool) -> None:
 
 
 def build_report(volume: Volume, recipe: Recipe, surfaces: List[Mesh], entries: List[Dict],
-                 files: List[Dict[str, Path]], report_path: Path, timings: Dict) -> Dict:
-    """The JSON report: space, units, input facts, recipe and one entry per surface."""
+                 files: List[Dict[str, Path]], report_path: Path, timings: Dict,
+                 smoothing: Optional[Dict] = None) -> Dict:
+    """The JSON report: space, units, input facts, recipe, smoothing and one entry per surface.
+
+    With smoothing, each surface also has ``volume_change_pct``, ``max_deviation_mm`` and
+    ``mean_deviation_mm`` (symmetric Hausdorff and mean distance to the unsmoothed surface) and
+    ``topology_changed``.
+    """
+    smoothing = smoothing or {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
     base = report_path.parent.resolve()
     facts = describe(volume)
     facts.pop("histogram", None)
     out = {"space": volume.space, "units": "mm", "input": facts,
            "recipe": {k: v for k, v in asdict(recipe).items()},
-           "smoothing": {"method": recipe.smooth}, "timings": {k: round(v, 4) for k, v in timings.items()},
+           "smoothing": {"preset": recipe.smooth,
+                         **{k: smoothing.get(k) for k in ("method", "params", "seconds", "warnings")}},
+           "timings": {k: round(v, 4) for k, v in timings.items()},
            "surfaces": []}
     for m, extra, fs in zip(surfaces, entries, files):
         topo = meshlib.topology(m.vertices, m.faces)
@@ -202,8 +261,20 @@ def build_report(volume: Volume, recipe: Recipe, surfaces: List[Mesh], entries: 
             "area_mm2": round(meshlib.surface_area(m.vertices, m.faces), 3),
             "closed": topo.closed, "manifold": topo.manifold, "oriented": topo.oriented,
             "euler": topo.euler, "genus": topo.genus, "components": comps,
-            "degenerate_faces": topo.degenerate_faces, **extra})
+            "degenerate_faces": topo.degenerate_faces, **_smoothing_fields(smoothing, m), **extra})
     return out
+
+
+def _smoothing_fields(smoothing: Dict, m: Mesh) -> Dict:
+    key = str(int(m.value)) if m.value is not None and float(m.value).is_integer() else str(m.value)
+    shell = smoothing.get("shells", {}).get(key) or smoothing.get("shells", {}).get(str(m.value))
+    if not shell:
+        return {}
+    return {"volume_change_pct": round(shell["volume_change_pct"], 4),
+            "max_deviation_mm": round(shell.get("hausdorff_mm", float("nan")), 4),
+            "mean_deviation_mm": round(shell.get("mean_distance_mm", float("nan")), 4),
+            "max_displacement_mm": round(shell["max_displacement_mm"], 4),
+            "topology_changed": bool(shell["topology_changed"])}
 
 
 def _rel(p: Path, base: Path) -> str:

@@ -115,6 +115,10 @@ class Constraint:
     max_deviation : float, optional
         Also keep every vertex within this distance (mm) of its start; clamped after every
         pass, so it is a hard bound on vertex displacement.
+    origin : (N, 3) float, mm, optional
+        The start positions ``center`` (when None) and ``max_deviation`` refer to; None = the
+        positions the filter is given. Set it (see :meth:`anchored`) when a later step continues
+        from already-smoothed positions, so the bounds stay relative to the unsmoothed surface.
     """
 
     kind: str = "none"
@@ -122,6 +126,14 @@ class Constraint:
     frame: Optional[np.ndarray] = None
     half: Sequence[float] = (0.5, 0.5, 0.5)
     max_deviation: Optional[float] = None
+    origin: Optional[np.ndarray] = None
+
+    def anchored(self, origin: np.ndarray) -> "Constraint":
+        """The same constraint with its bounds fixed to ``origin`` (N, 3) mm (the unsmoothed
+        positions), whatever positions a later filter starts from."""
+        o = np.ascontiguousarray(origin, np.float64)
+        return Constraint(self.kind, o if self.center is None else self.center, self.frame,
+                          self.half, self.max_deviation, o)
 
     def arrays(self, start: np.ndarray):
         """Kernel arguments ``(kind, center, frame, frame_inv, radius, start)`` (frame scaled by 1/half)."""
@@ -129,6 +141,11 @@ class Constraint:
             raise AnatomeshError(f"constraint kind must be one of {tuple(_KINDS)}, got {self.kind!r}")
         kind = _KINDS[self.kind]
         n = start.shape[0]
+        if self.origin is not None:
+            start = np.ascontiguousarray(self.origin, np.float64)
+            if start.shape != (n, 3):
+                raise AnatomeshError(f"constraint origin must be ({n}, 3) like the vertices, got "
+                                     f"{start.shape}")
         frame = _EYE if self.frame is None else np.asarray(self.frame, np.float64)
         if frame.shape != (3, 3) or not np.all(np.isfinite(frame)) or abs(np.linalg.det(frame)) < 1e-12:
             raise AnatomeshError("constraint frame must be an invertible 3x3 matrix (e.g. the "
@@ -926,7 +943,8 @@ def smooth_surfaces(surfaces, method: str = DEFAULT, *, constraint="auto",
         if preserve_volume:
             sides, n_regions = _regions(surfaces, is_set, structure)
             targets = region_volumes(v0, faces, sides, n_regions)
-            new_v = restore_volumes(new_v, faces, sides, targets, constraint=p["constraint"],
+            anchored = p["constraint"].anchored(v0) if p["constraint"] is not None else None
+            new_v = restore_volumes(new_v, faces, sides, targets, constraint=anchored,
                                     gain=p.get("gain"), structure=structure)
             if fold_guard:
                 new_v, more = unfold(new_v, v0, faces)

@@ -67,7 +67,7 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, argv, words):
 def test_mesh_label_subset_lands_on_the_voxels(capsys, tmp_path):
     out_dir = tmp_path / "out"
     code, out, err = run(capsys, "mesh", SEG, "--out", out_dir, "--labels", "liver,spleen,3",
-                         "--format", "stl,ply")
+                         "--format", "stl,ply", "--smooth", "none")
     assert code == 0, err
     rep = json.loads((out_dir / "report.json").read_text())
     assert rep["space"] == "RAS" and rep["units"] == "mm"
@@ -79,7 +79,8 @@ def test_mesh_label_subset_lands_on_the_voxels(capsys, tmp_path):
     for name, value in (("liver", 5), ("spleen", 1)):
         s = surf[name]
         assert s["closed"] and s["manifold"] and s["genus"] is not None
-        assert s["volume_mm3"] > 0
+        # the raw surface encloses exactly the label's voxels
+        assert s["volume_mm3"] == pytest.approx((data == value).sum() * 27.0, rel=1e-6)
         tri = read_stl(out_dir / s["files"]["stl"])
         assert b"SPACE=RAS" in tri["header"]
         pts = tri["triangles"].reshape(-1, 3)
@@ -96,6 +97,24 @@ def test_mesh_label_subset_lands_on_the_voxels(capsys, tmp_path):
     assert code == 2 and "--overwrite" in err
     code, _, err = run(capsys, "mesh", SEG, "--out", out_dir, "--labels", "liver", "--overwrite")
     assert code == 0, err
+
+
+def test_mesh_default_smoothing_is_measured_and_bounded(capsys, tmp_path):
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path, "--labels", "liver,aorta,vertebrae_L1")
+    assert code == 0, err
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["smoothing"]["preset"] == "organ" and rep["smoothing"]["method"] == "taubin"
+    for s in rep["surfaces"]:
+        assert s["closed"] and s["manifold"] and s["topology_changed"] is False
+        assert abs(s["volume_change_pct"]) <= 1.0          # compact organs keep their volume
+        diag = 3.0 * 3 ** 0.5                               # one voxel diagonal, 3 mm voxels
+        assert 0 < s["mean_deviation_mm"] < s["max_deviation_mm"] <= diag
+        assert s["max_displacement_mm"] <= diag / 2 + 1e-3  # every vertex stays in its voxel cell
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path / "cap", "--labels", "liver",
+                       "--max-deviation", "0.5", "--iterations", "30")
+    assert code == 0, err
+    liver = json.loads((tmp_path / "cap" / "report.json").read_text())["surfaces"][0]
+    assert liver["max_displacement_mm"] <= 0.5 + 1e-4
 
 
 def test_mesh_space_lps_negates_x_and_y(capsys, tmp_path):
