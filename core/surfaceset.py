@@ -1,0 +1,173 @@
+"""The :class:`SurfaceSet`: one conforming surface for many labels, and per-label shell views.
+
+Every face between two different labels (or a label and the background) is stored once, with
+the two labels on its sides. Where two labels touch they share the very same vertices, so shells
+built from the set have bit-identical seams. A label's closed shell is a *view*: its faces,
+oriented outward, with a few vertex copies (``splits``) that keep the shell 2-manifold where the
+label touches itself along an edge or at a point (see ``extract/shell_table.py``).
+
+Each vertex keeps the lattice point it came from: lattice point (a, b, c) sits at voxel-index
+position (a - 0.5, b - 0.5, c - 0.5), a voxel corner. Constrained smoothing (Gibson 1998,
+"Constrained elastic surface nets") keeps each vertex inside its *cell*, the voxel-sized box
+index-space [a - 1, a] x [b - 1, b] x [c - 1, c] mapped to mm by ``affine``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Dict, List, Tuple
+
+import numpy as np
+
+from . import _surfaceset_kernels as K
+from .errors import AnatomeshError
+from .mesh import Mesh
+from .volume import LabelInfo
+
+
+@dataclass
+class SurfaceSet:
+    """A multi-label surface with shared vertices.
+
+    Attributes
+    ----------
+    vertices : float32 (N, 3)
+        Positions in mm in ``space``.
+    faces : int32 (M, 3)
+        Triangles; the normal (counter-clockwise, right hand) points from ``face_labels[:, 0]``
+        to ``face_labels[:, 1]``.
+    face_labels : int32 (M, 2)
+        (inside, outside) label values of each triangle. The background value (``background``,
+        stored as is) is only ever the outside label.
+    lattice : int32 (N, 3)
+        Lattice point of each vertex (see module docstring).
+    affine : float64 (4, 4)
+        The volume's voxel index → mm affine (at voxel centres).
+    space : "RAS" or "LPS"
+    labels : dict[int, LabelInfo]
+        Name and colour of each label value present.
+    splits : int32 (S, 4)
+        Rows (face, side, corner, copy), copy >= 1: in the shell of label
+        ``face_labels[face, side]``, corner ``corner`` of triangle ``face`` uses extra copy
+        ``copy`` of vertex ``faces[face, corner]`` — at the same position, a separate vertex of
+        that shell. Ordered by face.
+    background : int
+        The background value of the label map.
+    voxel_counts : dict[int, int]
+        Voxels of each label value present (the raw shells enclose exactly count x voxel volume).
+    warnings : list[str]
+        Problems that did not stop extraction (e.g. a requested label not in the volume).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_labels: np.ndarray
+    lattice: np.ndarray
+    affine: np.ndarray
+    space: str = "RAS"
+    labels: Dict[int, LabelInfo] = field(default_factory=dict)
+    splits: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.int32))
+    background: int = 0
+    voxel_counts: Dict[int, int] = field(default_factory=dict)
+    warnings: List[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
+        self.faces = np.ascontiguousarray(self.faces, np.int32).reshape(-1, 3)
+        self.face_labels = np.ascontiguousarray(self.face_labels, np.int32).reshape(-1, 2)
+        self.lattice = np.ascontiguousarray(self.lattice, np.int32).reshape(-1, 3)
+        self.affine = np.asarray(self.affine, np.float64)
+        self.splits = np.ascontiguousarray(self.splits, np.int32).reshape(-1, 4)
+        if len(self.lattice) != len(self.vertices) or len(self.face_labels) != len(self.faces):
+            raise ValueError("vertices/lattice or faces/face_labels lengths differ")
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    def values(self) -> List[int]:
+        """Label values that have faces, ascending (the background excluded)."""
+        counts = self._face_counts()
+        return [int(v) for v in np.flatnonzero(counts) if v != self.background]
+
+    def _face_counts(self) -> np.ndarray:
+        if self.face_labels.size == 0:
+            return np.zeros(0, np.int64)
+        return np.bincount(self.face_labels.ravel())
+
+    def shell(self, value: int) -> Mesh:
+        """The closed, outward-oriented shell of one label as a :class:`Mesh`.
+
+        Vertices are compacted (shared ones first, then the split copies); ``meta["vertex_ids"]``
+        gives, for each shell vertex, its index in this set's ``vertices`` (so results computed on
+        the set map back, and vice versa).
+
+        Raises
+        ------
+        AnatomeshError
+            When the label has no faces in this set.
+        """
+        value = int(value)
+        present = self.values()
+        if value not in present:
+            raise AnatomeshError(
+                f"label {value} has no surface here; labels present: {_short_list(present)}")
+        return self._shells([value])[0]
+
+    def shells(self) -> List[Mesh]:
+        """The shells of all labels, ascending by value (one pass over the faces)."""
+        return self._shells(self.values())
+
+    def _shells(self, values: List[int]) -> List[Mesh]:
+        if not values:
+            return []
+        index = np.full(max(max(values), self.background, int(self.face_labels.max())) + 1,
+                        -1, np.int64)
+        index[np.asarray(values)] = np.arange(len(values))
+        order, starts = K.group_faces(self.face_labels, index, len(values))
+        split_label = self.face_labels[self.splits[:, 0], self.splits[:, 1]] if len(self.splits) \
+            else np.zeros(0, np.int32)
+        mark = np.full(self.n_vertices, -1, np.int64)
+        out = []
+        for g, value in enumerate(values):
+            rows = self.splits[split_label == value]
+            rows = rows[np.argsort(rows[:, 0], kind="stable")]  # by face, as the kernel reads them
+            # distinct (vertex, copy) pairs; a lattice corner has at most 4 fans, so copy < 16
+            keys = self.faces[rows[:, 0], rows[:, 2]].astype(np.int64) * 16 + rows[:, 3]
+            ukeys, copy_index = np.unique(keys, return_inverse=True)
+            faces, ids = K.shell(self.faces, order[starts[g]:starts[g + 1]], rows,
+                                 copy_index.astype(np.int64).reshape(-1), mark)
+            ids = np.concatenate([ids, ukeys // 16])
+            info = self.labels.get(value) or LabelInfo(value, f"label {value}")
+            out.append(Mesh(self.vertices[ids], faces, name=info.name, value=value,
+                            color=tuple(info.color), space=self.space,
+                            meta={"vertex_ids": ids, "copies": int(ukeys.size)}))
+        return out
+
+    def interfaces(self) -> List[Tuple[int, int, int]]:
+        """Pairs of touching labels ``(a, b, triangles)`` with a < b (background excluded)."""
+        fl = self.face_labels.astype(np.int64)
+        keep = (fl[:, 0] != self.background) & (fl[:, 1] != self.background)
+        lo = np.minimum(fl[keep, 0], fl[keep, 1])
+        hi = np.maximum(fl[keep, 0], fl[keep, 1])
+        keys, counts = np.unique(lo * 65536 + hi, return_counts=True)
+        return [(int(k // 65536), int(k % 65536), int(n)) for k, n in zip(keys, counts)]
+
+    def copy_with_vertices(self, new_vertices: np.ndarray) -> "SurfaceSet":
+        """The same set with moved vertices (e.g. after smoothing); faces, labels, splits shared."""
+        v = np.asarray(new_vertices)
+        if v.shape != self.vertices.shape:
+            raise ValueError(f"new vertices must have shape {self.vertices.shape}, got {v.shape}")
+        return dataclasses.replace(self, vertices=v.astype(np.float32, copy=True),
+                                   warnings=list(self.warnings))
+
+
+def _short_list(values: List[int], n: int = 12) -> str:
+    if not values:
+        return "none"
+    s = ", ".join(str(v) for v in values[:n])
+    return s + (f", ... ({len(values)} in all)" if len(values) > n else "")
