@@ -81,6 +81,11 @@ class SurfaceSet:
         if len(self.lattice) != len(self.vertices) or len(self.face_labels) != len(self.faces):
             raise ValueError("vertices/lattice or faces/face_labels lengths differ")
 
+    def __repr__(self) -> str:
+        return (f"SurfaceSet({self.n_vertices:,} vertices, {self.n_faces:,} faces, "
+                f"labels {_short_list(self.values(), 8)}, {len(self.splits)} split rows, "
+                f"space {self.space}, background {self.background})")
+
     @property
     def n_vertices(self) -> int:
         return int(self.vertices.shape[0])
@@ -91,20 +96,18 @@ class SurfaceSet:
 
     def values(self) -> List[int]:
         """Label values that have faces, ascending (the background excluded)."""
-        counts = self._face_counts()
-        return [int(v) for v in np.flatnonzero(counts) if v != self.background]
-
-    def _face_counts(self) -> np.ndarray:
         if self.face_labels.size == 0:
-            return np.zeros(0, np.int64)
-        return np.bincount(self.face_labels.ravel())
+            return []
+        counts = np.bincount(self.face_labels.ravel())
+        return [int(v) for v in np.flatnonzero(counts) if v != self.background]
 
     def shell(self, value: int) -> Mesh:
         """The closed, outward-oriented shell of one label as a :class:`Mesh`.
 
         Vertices are compacted (shared ones first, then the split copies); ``meta["vertex_ids"]``
         gives, for each shell vertex, its index in this set's ``vertices`` (so results computed on
-        the set map back, and vice versa).
+        the set map back, and vice versa); ``meta["copies"]`` counts the split copies, which sit
+        at the position of their shared vertex.
 
         Raises
         ------
