@@ -23,6 +23,12 @@ skip empty space 64 voxels per machine word and never re-read the data there):
 Vertex order: slab by slab, grid row by grid row; within grid row ``(Z, Y)`` its crossed x-edges
 (in x order), then its crossed y-edges to row ``(Z, Y+1)``, then its crossed z-edges to row
 ``(Z+1, Y)``. Each slab is processed by one thread; work is split over slabs with ``prange``.
+
+Performance notes: each parallel kernel only calls a serial per-slab function (numba's parfor
+lowering is slow to compile; small hot helpers are inlined at numba level because LLVM does not
+inline across numba functions); the loops index arrays directly instead of taking row views (a
+view bumps the parent's reference count atomically, which stalls two threads sharing it); the
+prange index is passed on as int64 (numba may type it unsigned, and unsigned + signed → float).
 """
 from __future__ import annotations
 
@@ -97,19 +103,20 @@ def _low_mask(typingctx, b):
 # pass 1: bit masks
 # ---------------------------------------------------------------------------------------------
 @_inline
-def _pack_word(row, x0, t):
+def _pack_word(v, z, y, x0, t):
+    """Bits ``v[z, y, x0 + b] >= t`` for b = 0..63 (the whole word inside the row)."""
     w = np.uint64(0)
     for b in range(64):
-        w |= np.uint64(row[x0 + b] >= t) << np.uint64(b)
+        w |= np.uint64(v[z, y, x0 + b] >= t) << np.uint64(b)
     return w
 
 
 @_inline
-def _pack_word_checked(row, x0, nx, t):
+def _pack_word_checked(v, z, y, x0, t):
     """Like _pack_word for a word that runs past either end of the row (outside bits are 0)."""
     w = np.uint64(0)
-    for x in range(max(x0, 0), min(x0 + 64, nx)):
-        w |= np.uint64(row[x] >= t) << np.uint64(x - x0)
+    for x in range(max(x0, 0), min(x0 + 64, v.shape[2])):
+        w |= np.uint64(v[z, y, x] >= t) << np.uint64(x - x0)
     return w
 
 
@@ -122,7 +129,7 @@ def classify(v, thresholds, pad, bits, n_above):
     n_above : (L, nz) int64 out, voxels above per slab (to spot levels outside the data range).
     """
     for z in prange(v.shape[0]):
-        _classify_slab(v, thresholds, pad, bits, n_above, z)
+        _classify_slab(v, thresholds, pad, bits, n_above, np.int64(z))
 
 
 @_serial
@@ -130,18 +137,16 @@ def _classify_slab(v, thresholds, pad, bits, n_above, z):
     nx = v.shape[2]
     n_words = bits.shape[3]
     for y in range(v.shape[1]):
-        row = v[z, y]
         for lv in range(thresholds.shape[0]):  # the row stays in cache for every level
             t = thresholds[lv]
-            out = bits[lv, z + pad, y + pad]
             n = 0
             for wi in range(n_words):
                 x0 = wi * 64 - pad
                 if x0 >= 0 and x0 + 64 <= nx:
-                    w = _pack_word(row, x0, t)
+                    w = _pack_word(v, z, y, x0, t)
                 else:
-                    w = _pack_word_checked(row, x0, nx, t)
-                out[wi] = w
+                    w = _pack_word_checked(v, z, y, x0, t)
+                bits[lv, z + pad, y + pad, wi] = w
                 n += _pc(w)
             n_above[lv, z] += n
 
@@ -150,10 +155,10 @@ def _classify_slab(v, thresholds, pad, bits, n_above, z):
 # pass 2: counts
 # ---------------------------------------------------------------------------------------------
 @_inline
-def _shift1(row, wi, n_words):
-    """Word wi of the row shifted by one voxel: bit X of the result = bit X+1 of the row."""
-    nxt = row[wi + 1] if wi + 1 < n_words else np.uint64(0)
-    return (row[wi] >> _ONE) | (nxt << _S63)
+def _shift1(bits, kz, jy, wi, n_words):
+    """Word wi of row (kz, jy) shifted by one voxel: bit X of the result = bit X+1 of the row."""
+    nxt = bits[kz, jy, wi + 1] if wi + 1 < n_words else np.uint64(0)
+    return (bits[kz, jy, wi] >> _ONE) | (nxt << _S63)
 
 
 @_inline
@@ -182,7 +187,7 @@ def count(bits, nx_virtual, tri_count, n_xe, n_ye, n_ze, n_tri, slab_vertices, s
     """
     for kz in prange(bits.shape[0]):
         _count_slab(bits, nx_virtual, tri_count, n_xe, n_ye, n_ze, n_tri, slab_vertices,
-                    slab_triangles, kz)
+                    slab_triangles, np.int64(kz))
 
 
 @_serial
@@ -190,15 +195,13 @@ def _count_slab(bits, nx_virtual, tri_count, n_xe, n_ye, n_ze, n_tri, slab_verti
                 slab_triangles, kz):
     nzv, nyv, n_words = bits.shape
     last = _last_mask(nx_virtual, n_words)
+    k1 = min(kz + 1, nzv - 1)  # k1 == kz on the last slab: its z-differences are 0
     total_v, total_t = 0, 0
     for jy in range(nyv):
-        b00 = bits[kz, jy]
-        b10 = bits[kz, jy + 1] if jy + 1 < nyv else b00  # b00 ^ b00 = 0: no y-edges on the last row
-        b01 = bits[kz + 1, jy] if kz + 1 < nzv else b00
-        b11 = bits[kz + 1, jy + 1] if jy + 1 < nyv and kz + 1 < nzv else b00
+        j1 = min(jy + 1, nyv - 1)
         occupied = np.uint64(0)
         for wi in range(n_words):
-            occupied |= b00[wi] | b10[wi] | b01[wi] | b11[wi]
+            occupied |= bits[kz, jy, wi] | bits[kz, j1, wi] | bits[k1, jy, wi] | bits[k1, j1, wi]
         if occupied == 0:  # empty space (all four rows below the level): nothing to count
             n_xe[kz, jy] = 0
             n_ye[kz, jy] = 0
@@ -207,13 +210,13 @@ def _count_slab(bits, nx_virtual, tri_count, n_xe, n_ye, n_ze, n_tri, slab_verti
             continue
         cx, cy, cz = 0, 0, 0
         for wi in range(n_words):
-            r00 = b00[wi]
-            d = r00 ^ _shift1(b00, wi, n_words)
+            r00 = bits[kz, jy, wi]
+            d = r00 ^ _shift1(bits, kz, jy, wi, n_words)
             if wi == n_words - 1:
                 d &= last
             cx += _pc(d)
-            cy += _pc(r00 ^ b10[wi])
-            cz += _pc(r00 ^ b01[wi])
+            cy += _pc(r00 ^ bits[kz, j1, wi])
+            cz += _pc(r00 ^ bits[k1, jy, wi])
         n_xe[kz, jy] = cx
         n_ye[kz, jy] = cy
         n_ze[kz, jy] = cz
@@ -221,11 +224,11 @@ def _count_slab(bits, nx_virtual, tri_count, n_xe, n_ye, n_ze, n_tri, slab_verti
         if jy + 1 < nyv and kz + 1 < nzv:
             nt = 0
             for wi in range(n_words):
-                r00, r10, r01, r11 = b00[wi], b10[wi], b01[wi], b11[wi]
-                s00 = _shift1(b00, wi, n_words)
-                s10 = _shift1(b10, wi, n_words)
-                s01 = _shift1(b01, wi, n_words)
-                s11 = _shift1(b11, wi, n_words)
+                r00, r10, r01, r11 = bits[kz, jy, wi], bits[kz, j1, wi], bits[k1, jy, wi], bits[k1, j1, wi]
+                s00 = _shift1(bits, kz, jy, wi, n_words)
+                s10 = _shift1(bits, kz, j1, wi, n_words)
+                s01 = _shift1(bits, k1, jy, wi, n_words)
+                s11 = _shift1(bits, k1, j1, wi, n_words)
                 any_set = r00 | s00 | r10 | s10 | r01 | s01 | r11 | s11
                 all_set = r00 & s00 & r10 & s10 & r01 & s01 & r11 & s11
                 active = any_set & ~all_set
@@ -324,7 +327,7 @@ def emit_vertices(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, slab_start
     """Pass 3a: one vertex per crossed edge; slab kz starts at vertex ``slab_start[kz]``."""
     for kz in prange(bits.shape[0]):
         _vertices_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, slab_start[kz], out_v,
-                       out_n, kz)
+                       out_n, np.int64(kz))
 
 
 @_serial
@@ -332,22 +335,22 @@ def _vertices_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_
     nzv, nyv, n_words = bits.shape
     last = _last_mask(v.shape[2] + 2 * pad, n_words)
     z = kz - pad
+    k1 = min(kz + 1, nzv - 1)
     for jy in range(nyv):
         if n_xe[kz, jy] + n_ye[kz, jy] + n_ze[kz, jy] == 0:
             continue
         y = jy - pad
-        b00 = bits[kz, jy]
+        j1 = min(jy + 1, nyv - 1)
         for axis in range(3):  # x-edges, then y-edges (to row Y+1), then z-edges (to row Z+1)
-            if (axis == 1 and jy + 1 >= nyv) or (axis == 2 and kz + 1 >= nzv):
-                continue
-            other = bits[kz, jy + 1] if axis == 1 else (bits[kz + 1, jy] if axis == 2 else b00)
+            ko = k1 if axis == 2 else kz
+            jo = j1 if axis == 1 else jy
             for wi in range(n_words):
                 if axis == 0:
-                    d = b00[wi] ^ _shift1(b00, wi, n_words)
+                    d = bits[kz, jy, wi] ^ _shift1(bits, kz, jy, wi, n_words)
                     if wi == n_words - 1:
                         d &= last
-                else:
-                    d = b00[wi] ^ other[wi]
+                else:  # zero on the last row / slab (jo == jy, ko == kz there)
+                    d = bits[kz, jy, wi] ^ bits[ko, jo, wi]
                 while d:
                     b = _ctz(d)
                     d &= d - _ONE
@@ -369,7 +372,7 @@ def emit_triangles(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_t
     """
     for kz in prange(bits.shape[0] - 1):
         _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_tri,
-                        slab_vstart[kz], slab_vstart[kz + 1], slab_tstart[kz], out_f, kz)
+                        slab_vstart[kz], slab_vstart[kz + 1], slab_tstart[kz], out_f, np.int64(kz))
 
 
 @_serial
@@ -378,7 +381,9 @@ def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_
     """row0 / row1: first vertex of the current grid row in slab kz / kz + 1 (advanced per row)."""
     nzv, nyv, n_words = bits.shape
     last = _last_mask(nx_virtual, n_words)
-    ids = np.empty(12, np.int64)
+    ids = np.empty(12, np.int64)  # vertex index on each of the 12 edges of the current cell
+    flat = out_f.reshape(-1)
+    out = 3 * out  # position in flat
     for jy in range(nyv - 1):
         # first vertex of rows (kz, jy), (kz, jy+1), (kz+1, jy), (kz+1, jy+1)
         v00 = row0
@@ -388,10 +393,6 @@ def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_
         row0, row1 = v10, v11
         if n_tri[kz, jy] == 0:
             continue
-        b00 = bits[kz, jy]
-        b10 = bits[kz, jy + 1]
-        b01 = bits[kz + 1, jy]
-        b11 = bits[kz + 1, jy + 1]
         # running index of the next vertex of each edge block at the start of the current word
         x00, x10, x01, x11 = v00, v10, v01, v11
         y0 = v00 + n_xe[kz, jy]
@@ -399,11 +400,12 @@ def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_
         z0 = v00 + n_xe[kz, jy] + n_ye[kz, jy]
         z1 = v10 + n_xe[kz, jy + 1] + n_ye[kz, jy + 1]
         for wi in range(n_words):
-            r00, r10, r01, r11 = b00[wi], b10[wi], b01[wi], b11[wi]
-            s00 = _shift1(b00, wi, n_words)
-            s10 = _shift1(b10, wi, n_words)
-            s01 = _shift1(b01, wi, n_words)
-            s11 = _shift1(b11, wi, n_words)
+            r00, r10 = bits[kz, jy, wi], bits[kz, jy + 1, wi]
+            r01, r11 = bits[kz + 1, jy, wi], bits[kz + 1, jy + 1, wi]
+            s00 = _shift1(bits, kz, jy, wi, n_words)
+            s10 = _shift1(bits, kz, jy + 1, wi, n_words)
+            s01 = _shift1(bits, kz + 1, jy, wi, n_words)
+            s11 = _shift1(bits, kz + 1, jy + 1, wi, n_words)
             any_set = r00 | s00 | r10 | s10 | r01 | s01 | r11 | s11
             all_set = r00 & s00 & r10 & s10 & r01 & s01 & r11 & s11
             active = any_set & ~all_set
@@ -437,9 +439,10 @@ def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_
                 ids[9] = a0 + _bit(zd0, b)
                 ids[10] = a1
                 ids[11] = a1 + _bit(zd1, b)
-                for k in range(3 * tri_count[c]):
-                    out_f[out + k // 3, k % 3] = ids[tri_edges[c, k]]
-                out += tri_count[c]
+                nk = 3 * tri_count[c]
+                for k in range(nk):
+                    flat[out + k] = ids[tri_edges[c, k]]
+                out += nk
             x00 += _pc(xd00)
             x10 += _pc(xd10)
             x01 += _pc(xd01)

@@ -179,7 +179,8 @@ def _min_angles() -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         for u, v, w in ((a, b, c), (b, c, a), (c, a, b)):
             d1, d2 = p[v] - p[u], p[w] - p[u]
-            cosang = np.einsum("...i,...i", d1, d2) / (np.linalg.norm(d1, axis=-1) * np.linalg.norm(d2, axis=-1))
+            lengths = np.linalg.norm(d1, axis=-1) * np.linalg.norm(d2, axis=-1)
+            cosang = np.einsum("...i,...i", d1, d2) / lengths
             ang = np.arccos(np.clip(np.nan_to_num(cosang, nan=1.0), -1.0, 1.0))
             out = np.minimum(out, ang)
     return out
