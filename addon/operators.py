@@ -361,12 +361,16 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
             coll = extract_to_scene(context, vol, labels=chosen_labels(settings, vol, ""),
                                     levels=chosen_levels(settings, ""), render_method=self.render_method,
                                     progress=progress)
-        _frame_viewports(context, coll)
-        for w in coll.get("anatomesh_warnings", []):
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' "
-                              f"({time.perf_counter() - t0:.1f} s)")
-        return {"FINISHED"}
+        return _finish_extraction(self, context, coll, t0)
+
+
+def _finish_extraction(op, context, coll, t0: float):
+    """Frame the new surfaces, pass the reader's warnings on, report count and time."""
+    _frame_viewports(context, coll)
+    for w in coll.get("anatomesh_warnings", []):
+        op.report({"WARNING"}, w)
+    op.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' ({time.perf_counter() - t0:.1f} s)")
+    return {"FINISHED"}
 
 
 class ANATOMESH_OT_extract(bpy.types.Operator):
@@ -428,12 +432,7 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         if iters > 0 and method != "NONE":
             with ProgressReporter(context, "smoothing"):
                 live.smooth_collection(coll, method, iters, strength, maxdev, in_cell)
-        _frame_viewports(context, coll)
-        for w in coll.get("anatomesh_warnings", []):
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' "
-                              f"({time.perf_counter() - t0:.1f} s)")
-        return {"FINISHED"}
+        return _finish_extraction(self, context, coll, t0)
 
 
 class ANATOMESH_OT_smooth(bpy.types.Operator):
