@@ -116,6 +116,8 @@ def cmd_mesh(args) -> int:
         damping_distance=args.damping_distance, staircase=args.staircase,
         formats=_formats(args.format), report=args.report, overwrite=args.overwrite)
     result = run(recipe, TerminalProgress("meshing"))
+    for w in result.report.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
     n_closed = sum(1 for s in result.report["surfaces"] if s["closed"])
     print(f"{len(result.surfaces)} surfaces ({n_closed} closed) in {recipe.space} mm -> {args.out}; "
           f"report {result.report_path}")

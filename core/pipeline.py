@@ -106,6 +106,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
         report(progress, 0.75 + 0.2 * (i + 1) / max(1, len(surfaces)), f"wrote {m.name}")
     timings["total_s"] = time.perf_counter() - t0
     rep = build_report(volume, recipe, surfaces, entries, files, report_path, timings, smoothing)
+    rep["warnings"] = list(volume.warnings) + list(getattr(raw, "warnings", [])) + \
+        list(smoothing.get("warnings") or [])
     report_path.parent.mkdir(parents=True, exist_ok=True)
     report_path.write_text(json.dumps(rep, indent=2))
     report(progress, 1.0, "done")

@@ -117,6 +117,15 @@ def test_mesh_default_smoothing_is_measured_and_bounded(capsys, tmp_path):
     assert liver["max_displacement_mm"] <= 0.5 + 1e-4
 
 
+def test_mesh_absent_label_is_a_warning_in_report_and_terminal(capsys, tmp_path):
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path, "--labels", "spleen,200", "--smooth", "none")
+    assert code == 0, err
+    assert "warning:" in err and "200" in err
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert [s["name"] for s in rep["surfaces"]] == ["spleen"]
+    assert any("200" in w for w in rep["warnings"])
+
+
 def test_mesh_space_lps_negates_x_and_y(capsys, tmp_path):
     for space in ("RAS", "LPS"):
         code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path / space, "--labels", "spleen",
