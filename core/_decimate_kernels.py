@@ -31,6 +31,16 @@ STEP = 1           # sweep finished
 REFS_FULL = 3      # vertex -> face lists need compacting
 
 
+@njit(cache=True, inline="always")
+def _add_label(labs, nl, lab):
+    """Append ``lab`` to ``labs[:nl]`` unless it is there already; returns the new count."""
+    for j in range(nl):
+        if labs[j] == lab:
+            return nl
+    labs[nl] = lab
+    return nl + 1
+
+
 # ---------------------------------------------------------------------------------------------
 # quadrics
 # ---------------------------------------------------------------------------------------------
@@ -295,15 +305,7 @@ def _classify_vertex(F, flab, refs, st, c, v, multi, labs, sel, parent):
         for i in range(c):
             f = refs[st + i]
             for s in range(2):
-                lab = flab[f, s]
-                seen = False
-                for j in range(nl):
-                    if labs[j] == lab:
-                        seen = True
-                        break
-                if not seen:
-                    labs[nl] = lab
-                    nl += 1
+                nl = _add_label(labs, nl, flab[f, s])
         if nl >= 3:
             cls = 1
     # edges at v: open boundary or junction -> feature; 3+ faces without junction -> locked
@@ -708,15 +710,7 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
             for i in range(na + nb if (multi or budgets) else 0):
                 f = fa[i] if i < na else fb[i - na]
                 for s in range(2):
-                    lab = flab[f, s]
-                    seen = False
-                    for j in range(nl):
-                        if labs[j] == lab:
-                            seen = True
-                            break
-                    if not seen:
-                        labs[nl] = lab
-                        nl += 1
+                    nl = _add_label(labs, nl, flab[f, s])
             blocked = False
             listed = nl == 0
             for j in range(nl):

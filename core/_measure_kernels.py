@@ -6,6 +6,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ._search_kernels import lower_bound
+
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
@@ -102,19 +104,6 @@ def triangle_cells(v, faces, origin, cell, dims):
     return keys, tri
 
 
-@njit(cache=True)
-def _lower_bound(a, x):
-    lo = 0
-    hi = a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] < x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
 @njit(parallel=True, fastmath=FAST, cache=True)
 def points_to_triangles(points, v, faces, origin, cell, dims, ukeys, starts, tris):
     """Exact distance (mm) from each point to the nearest triangle, by ring search in the grid.
@@ -156,7 +145,7 @@ def points_to_triangles(points, v, faces, origin, cell, dims, ukeys, starts, tri
                         if (gx * gx + gy * gy + gz * gz) * cell * cell >= best:
                             continue
                         key = (cx * dims[1] + cy) * dims[2] + cz
-                        c = _lower_bound(ukeys, key)
+                        c = lower_bound(ukeys, key)
                         if c >= ukeys.shape[0] or ukeys[c] != key:
                             continue
                         for a in range(starts[c], starts[c + 1]):

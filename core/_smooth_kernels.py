@@ -23,6 +23,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ._search_kernels import lower_bound
+
 #: fast-math without "no NaN / no Inf" assumptions (an infinite radius means "no cap")
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
@@ -392,20 +394,6 @@ def normal_vertex_update(src, dst, vf_offsets, vf, fnormals, areas, centroids, f
 # ---------------------------------------------------------------------------------------------
 # distance to other structures (Mönch et al. 2010a): a uniform grid hash
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
-def lower_bound(a, x):
-    """First index of sorted ``a`` whose value is >= x (``np.searchsorted``, left)."""
-    lo = 0
-    hi = a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] < x:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
 @njit(parallel=True, cache=True)
 def nearest_other_group(points, groups, cell, origin, dims, sorted_keys, order):
     """Distance (mm) from each point to the nearest point of another group, capped at ``cell``.

@@ -233,39 +233,12 @@ def closest_points(points, vertices, faces, origin, h, dims, start, items, max_d
 # rays
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
-def ray_triangle(o, d, a, b, c, edge_tol):
-    """Möller & Trumbore 1997 ray-triangle test; returns (t, ambiguous) with t = inf on a miss.
+def _ray_tri_idx(o, d, vertices, ia, ib, ic, edge_tol):
+    """Möller & Trumbore 1997 ray-triangle test on vertex rows ia, ib, ic (scalar reads, no array
+    views); returns (t, ambiguous) with t = inf on a miss.
 
     ``ambiguous`` is True when the hit lies within ``edge_tol`` (barycentric) of an edge, where
     parity counting could see the same crossing twice."""
-    e1x, e1y, e1z = _sub(b, a)
-    e2x, e2y, e2z = _sub(c, a)
-    px = d[1] * e2z - d[2] * e2y
-    py = d[2] * e2x - d[0] * e2z
-    pz = d[0] * e2y - d[1] * e2x
-    det = e1x * px + e1y * py + e1z * pz
-    scale = (abs(e1x) + abs(e1y) + abs(e1z)) * (abs(e2x) + abs(e2y) + abs(e2z))
-    if abs(det) <= 1e-14 * scale:
-        return np.inf, False
-    inv = 1.0 / det
-    tx, ty, tz = _sub(o, a)
-    u = (tx * px + ty * py + tz * pz) * inv
-    if u < -edge_tol or u > 1.0 + edge_tol:
-        return np.inf, False
-    qx = ty * e1z - tz * e1y
-    qy = tz * e1x - tx * e1z
-    qz = tx * e1y - ty * e1x
-    v = (d[0] * qx + d[1] * qy + d[2] * qz) * inv
-    if v < -edge_tol or u + v > 1.0 + edge_tol:
-        return np.inf, False
-    t = (e2x * qx + e2y * qy + e2z * qz) * inv
-    amb = u < edge_tol or v < edge_tol or u + v > 1.0 - edge_tol
-    return t, amb
-
-
-@njit(cache=True)
-def _ray_tri_idx(o, d, vertices, ia, ib, ic, edge_tol):
-    """:func:`ray_triangle` on vertex rows ia, ib, ic, reading scalars (no array views)."""
     ax, ay, az = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
     e1x, e1y, e1z = vertices[ib, 0] - ax, vertices[ib, 1] - ay, vertices[ib, 2] - az
     e2x, e2y, e2z = vertices[ic, 0] - ax, vertices[ic, 1] - ay, vertices[ic, 2] - az
