@@ -10,15 +10,20 @@ from __future__ import annotations
 
 import bpy
 
-from . import live, operators, panels, props
+from . import decimate_ui, live, operators, paint, panels, print_ui, props, recipe_ui
 
-CLASSES = props.CLASSES + operators.CLASSES + panels.CLASSES
+#: feature modules with their own ``CLASSES`` and ``register()``/``unregister()`` for their properties
+FEATURES = (paint, decimate_ui, print_ui, recipe_ui)
+CLASSES = props.CLASSES + operators.CLASSES + panels.CLASSES + \
+    tuple(c for m in FEATURES for c in m.CLASSES)
 
 
 def register():
     for cls in CLASSES:
         bpy.utils.register_class(cls)
     props.register_properties()
+    for m in FEATURES:
+        m.register()
     bpy.types.TOPBAR_MT_file_import.append(panels.menu_import)
     live.register_handlers()
 
@@ -26,6 +31,8 @@ def register():
 def unregister():
     live.unregister_handlers()
     bpy.types.TOPBAR_MT_file_import.remove(panels.menu_import)
+    for m in reversed(FEATURES):
+        m.unregister()
     props.unregister_properties()
     for cls in reversed(CLASSES):
         try:

@@ -1,4 +1,4 @@
-"""The ``anatomesh`` command line: ``inspect`` and ``mesh``.
+"""The ``anatomesh`` command line: ``inspect``, ``mesh`` and ``check`` (in :mod:`.cli_check`).
 
 Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--debug``).
 """
@@ -78,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--overwrite", action="store_true", help="replace existing output files")
     m.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     m.set_defaults(func=cmd_mesh)
+
+    from .cli_check import add_parser as add_check
+    add_check(subs)
     return p
 
 
