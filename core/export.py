@@ -117,3 +117,10 @@ class _atomic:
         else:
             self.tmp.unlink(missing_ok=True)
         return False
+
+
+# Writers that take all surfaces at once (one file per scene); imported last, they use _atomic.
+from .export_3mf import write_3mf  # noqa: E402
+from .export_gltf import write_glb  # noqa: E402
+
+SCENE_FORMATS = {"3mf": write_3mf, "glb": write_glb}
