@@ -254,10 +254,7 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
 
         sset = label_surfaces(volume, values=[v for v, _, _ in labels], progress=progress)
         shells = {int(round(float(m.value))): m for m in sset.shells()}
-        fl = np.sort(sset.face_labels.astype(np.int64), axis=1)  # the unordered pair of structures
-        _, groups = np.unique(fl[:, 0] * (int(fl.max(initial=0)) + 1) + fl[:, 1], return_inverse=True)
-        surface = live.ScanSurface(sset.vertices, sset.faces, face_groups=groups.ravel().astype(np.int64),
-                                   lattice=sset.lattice, affine=np.asarray(sset.affine))
+        surface = set_surface(sset)
         warnings += list(sset.warnings)
         for v, name, color in labels:
             m = shells.get(int(v))
@@ -276,6 +273,20 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
             else:
                 warnings.append(f"isovalue {lv:g} ({name}) gives no surface: it is outside the data range")
     _KERNELS_WARM = True
+    return scan_to_scene(context, volume, items, surface, warnings, render_method)
+
+
+def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.ScanSurface"],
+                  warnings: Sequence[str] = (), render_method: str = "DITHERED") -> bpy.types.Collection:
+    """Add extracted surfaces to the scene: a new collection named after the scan, one object
+    per item, and the live-smoothing cache.
+
+    ``items``: ``(core Mesh, value, name, colour, shared index or None)``; ``surface``: the
+    label map's shared :class:`live.ScanSurface` (None: independent isosurfaces, stacked here).
+    Used by :func:`extract_to_scene` and by the headless pipeline (``addon/headless.py``).
+    """
+    from ..core.errors import AnatomeshError
+
     if not items:
         raise AnatomeshError("nothing to show: the chosen labels/levels give no surface",
                              volume.meta.get("source"))
@@ -289,7 +300,7 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
     coll.anatomesh.render_method = render_method
     coll["anatomesh_space"] = volume.space
     coll["anatomesh_units"] = "mm"
-    coll["anatomesh_warnings"] = warnings
+    coll["anatomesh_warnings"] = list(warnings)
     members, offsets = [], 0
     pieces_v, pieces_f = [], []
     for m, value, name, color, shared in items:
@@ -308,6 +319,14 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
     live.remember(coll, surface)
     context.scene.anatomesh.last_collection = coll.name
     return coll
+
+
+def set_surface(sset) -> "live.ScanSurface":
+    """The live-smoothing surface of a core SurfaceSet (face groups: the pair of structures)."""
+    fl = np.sort(sset.face_labels.astype(np.int64), axis=1)  # the unordered pair of structures
+    _, groups = np.unique(fl[:, 0] * (int(fl.max(initial=0)) + 1) + fl[:, 1], return_inverse=True)
+    return live.ScanSurface(sset.vertices, sset.faces, face_groups=groups.ravel().astype(np.int64),
+                            lattice=sset.lattice, affine=np.asarray(sset.affine))
 
 
 def _shared_index(mesh) -> np.ndarray:

@@ -1,11 +1,231 @@
-"""Anatomesh add-on: save/load the current settings as a recipe TOML file (the same file `anatomesh mesh --recipe` reads)."""
+"""Anatomesh add-on: save/load the current settings as a recipe TOML file (the same file
+``anatomesh mesh --recipe`` reads, see :mod:`anatomesh.core.recipe`).
 
-CLASSES = ()
+* ``anatomesh.recipe_save``: the scene's Anatomesh settings (scan, label ticks or isovalues,
+  smoothing of the active scan or the defaults, the Decimate panel's target when the active scan
+  was decimated, the Print panel's printer when its check was run, export folder and format) →
+  a recipe file.
+* ``anatomesh.recipe_load``: a recipe file → those settings (a decimation target goes into the
+  Decimate panel, the print check's printer into the Print panel); the scan is read so the label list shows the recipe's choice (and, with
+  ``extract``, the surfaces are made at once).
+
+Paths in a saved recipe are relative to the recipe's folder when they share one.
+"""
+
+import os
+
+import bpy
+from bpy.props import BoolProperty, StringProperty
+from bpy.types import Operator, Panel
+from bpy_extras.io_utils import ExportHelper, ImportHelper
+
+from .operators import _abspath, active_scan, guarded, load_volume
+from .panels import _Base
+
+#: UI smoothing method → core filter name (TAUBIN with "Stay in voxel" is core's "organ" preset)
+_UI_TO_CORE = {"LAPLACIAN": "laplacian", "HC": "hc", "MEAN_CURVATURE": "mean_curvature"}
+#: UI export format → core output format
+_EXPORT_TO_CORE = {"STL": "stl", "PLY": "ply", "OBJ": "obj", "GLB": "glb", "GLTF": "glb"}
+
+
+# ---------------------------------------------------------------------------------------------
+# settings ↔ Recipe
+# ---------------------------------------------------------------------------------------------
+def recipe_from_scene(context):
+    """A core ``Recipe`` holding the scene's current Anatomesh settings."""
+    from ..core.pipeline import Recipe
+
+    s = context.scene.anatomesh
+    r = Recipe(input=_abspath(s.filepath), series=s.series or None,
+               label_table=_abspath(s.label_table) or None, space=s.space)
+    if s.kind == "LABELS" and len(s.labels):
+        chosen = [int(item.value) for item in s.labels if item.include]
+        r.labels = "all" if len(chosen) == len(s.labels) else chosen
+    elif s.kind == "LEVELS":
+        r.levels = [float(item.value) for item in s.levels if item.include]
+    coll = active_scan(context)
+    st = coll.anatomesh if coll is not None else s
+    _smoothing_to_recipe(r, st.smooth_method, st.smooth_iterations, st.smooth_strength,
+                         st.smooth_max_deviation, st.keep_in_cell)
+    d = getattr(context.scene, "anatomesh_decimate", None)  # the Decimate panel (decimate_ui)
+    if d is not None and coll is not None and "anatomesh_decimation_max_error_mm" in coll:
+        # the scan was decimated: the recipe decimates to the panel's target too
+        if d.target == "RATIO":
+            r.decimate = float(d.ratio)
+        elif d.target == "FACES":
+            r.target_faces = int(d.faces)
+        elif d.max_error > 0:
+            r.max_error = float(d.max_error)
+    _print_to_recipe(r, getattr(context.scene, "anatomesh_print", None))
+    r.out_dir = _abspath(s.export_dir) or "anatomesh_out"
+    r.formats = [_EXPORT_TO_CORE.get(s.export_format, "stl")]
+    return r
+
+
+def _print_to_recipe(r, p) -> None:
+    """The Print panel's settings, when its check was run: check on, profile, overridden limits."""
+    from ..core.printcheck import PROFILES
+
+    if p is None or not p.checked:
+        return
+    r.check, r.profile = True, p.profile.lower()
+    prof = PROFILES.get(r.profile, {})
+    if abs(p.min_wall - prof.get("min_wall", -1.0)) > 1e-6:
+        r.min_wall = float(p.min_wall)
+    if abs(p.min_gap - prof.get("min_gap", -1.0)) > 1e-6 and p.min_gap > 0:
+        r.min_gap = float(p.min_gap)
+
+
+def _smoothing_to_recipe(r, method: str, iterations: int, strength: float, max_deviation: float,
+                         keep_in_cell: bool) -> None:
+    if method == "NONE" or iterations <= 0:
+        r.smooth = "none"
+        return
+    if method == "TAUBIN":
+        r.smooth = "organ" if keep_in_cell else "taubin"
+    else:
+        r.smooth = _UI_TO_CORE.get(method, "taubin")
+    r.iterations = int(iterations)
+    if method in ("TAUBIN", "LAPLACIAN", "HC"):
+        r.lam = float(strength)
+    r.max_deviation = float(max_deviation) if max_deviation > 0 else None
+
+
+def smoothing_to_ui(recipe) -> dict:
+    """The Smooth panel's values for a recipe's smoothing (method, iterations, strength, ...)."""
+    from ..core.smooth import PRESETS
+
+    name = (recipe.smooth or "none").lower()
+    preset = PRESETS.get(name, {})
+    if name == "none":
+        return dict(smooth_method="NONE", smooth_iterations=0)
+    method = {"laplacian": "LAPLACIAN", "hc": "HC", "mean_curvature": "MEAN_CURVATURE"}.get(
+        preset.get("method", name), "TAUBIN")
+    out = dict(smooth_method=method,
+               smooth_iterations=int(recipe.iterations or preset.get("iterations", 20)),
+               smooth_strength=float(recipe.lam if recipe.lam is not None else preset.get("lam", 0.5)),
+               smooth_max_deviation=float(recipe.max_deviation or 0.0),
+               keep_in_cell=preset.get("constraint", "cell") == "cell")
+    return out
+
+
+def apply_recipe(context, recipe, extract: bool = False) -> None:
+    """Put a recipe's settings into the scene; read its scan and tick its labels / levels."""
+    from ..core.pipeline import select_labels
+
+    s = context.scene.anatomesh
+    inp = recipe.input[0] if isinstance(recipe.input, list) else recipe.input
+    s.filepath, s.series = inp, recipe.series or ""
+    s.label_table, s.space = recipe.label_table or "", recipe.space
+    for key, value in smoothing_to_ui(recipe).items():
+        setattr(s, key, value)
+    d = getattr(context.scene, "anatomesh_decimate", None)
+    if d is not None:
+        for target, key, value in (("RATIO", "ratio", recipe.decimate), ("FACES", "faces", recipe.target_faces),
+                                   ("ERROR", "max_error", recipe.max_error)):
+            if value is not None:
+                d.target = target
+                setattr(d, key, value)
+    p = getattr(context.scene, "anatomesh_print", None)
+    if p is not None and recipe.check:
+        p.profile = recipe.profile.upper()  # fills in the profile's limits
+        if recipe.min_wall is not None:
+            p.min_wall = recipe.min_wall
+        if recipe.min_gap is not None:
+            p.min_gap = recipe.min_gap
+    s.export_dir = recipe.out_dir
+    fmt = next((f for f in recipe.formats if f in ("stl", "ply", "obj", "glb")), "stl")
+    s.export_format = fmt.upper()
+    res = bpy.ops.anatomesh.import_scan(filepath=inp, series=s.series, label_table=s.label_table,
+                                        space=s.space, extract=False)
+    if res != {"FINISHED"}:
+        return
+    vol = load_volume(inp, s.series, s.label_table, s.space)
+    if vol.is_label_map:
+        wanted = select_labels(vol, recipe.labels)
+        for item in s.labels:
+            item.include = wanted is None or int(item.value) in wanted
+    elif recipe.levels:
+        s.levels.clear()
+        for lv in recipe.levels:
+            item = s.levels.add()
+            item.value, item.name = float(lv), f"level {lv:g}"
+    if extract:
+        bpy.ops.anatomesh.extract()
+
+
+# ---------------------------------------------------------------------------------------------
+# operators and panel
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_OT_recipe_save(Operator, ExportHelper):
+    """Save the current Anatomesh settings as a recipe (TOML) for `anatomesh mesh --recipe`"""
+
+    bl_idname = "anatomesh.recipe_save"
+    bl_label = "Save Recipe"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".toml"
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
+    filepath: StringProperty(name="File", subtype="FILE_PATH")
+
+    @guarded
+    def execute(self, context):
+        from ..core.errors import AnatomeshError
+        from ..core.recipe import dump_recipe
+
+        path = _abspath(self.filepath)
+        if not path:
+            raise AnatomeshError("no recipe file chosen: pass filepath=")
+        if not context.scene.anatomesh.filepath:
+            raise AnatomeshError("no scan in the Import panel: read a scan before saving its recipe")
+        text = dump_recipe(recipe_from_scene(context), base=os.path.dirname(path))
+        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        self.report({"INFO"}, f"Saved recipe {path}")
+        return {"FINISHED"}
+
+
+class ANATOMESH_OT_recipe_load(Operator, ImportHelper):
+    """Load a recipe (TOML): scan, labels or isovalues, smoothing and export settings"""
+
+    bl_idname = "anatomesh.recipe_load"
+    bl_label = "Load Recipe"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
+    filepath: StringProperty(name="File", subtype="FILE_PATH")
+    extract: BoolProperty(name="Extract now", default=False,
+                          description="Create the recipe's surfaces right away")
+
+    @guarded
+    def execute(self, context):
+        from ..core.recipe import load_recipe
+
+        recipe = load_recipe(_abspath(self.filepath))
+        apply_recipe(context, recipe, self.extract)
+        self.report({"INFO"}, f"Loaded recipe {os.path.basename(self.filepath)}")
+        return {"FINISHED"}
+
+
+class ANATOMESH_PT_recipe(_Base, Panel):
+    bl_label = "Recipe"
+    bl_idname = "ANATOMESH_PT_recipe"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        col = self.layout.column(align=True)
+        col.operator("anatomesh.recipe_save", text="Save Recipe...", icon="FILE_TICK")
+        col.operator("anatomesh.recipe_load", text="Load Recipe...", icon="FILE_FOLDER")
+        self.layout.label(text="Runs headless: anatomesh mesh --recipe FILE", icon="CONSOLE")
+
+
+CLASSES = (ANATOMESH_OT_recipe_save, ANATOMESH_OT_recipe_load, ANATOMESH_PT_recipe)
 
 
 def register() -> None:
-    """Register properties this module owns (classes are registered from CLASSES by the package)."""
+    """Nothing besides the classes (registered from CLASSES by the package)."""
 
 
 def unregister() -> None:
-    """Remove what :func:`register` added."""
+    """Nothing to remove (see :func:`register`)."""

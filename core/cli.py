@@ -1,6 +1,10 @@
 """The ``anatomesh`` command line: ``inspect``, ``mesh`` and ``check`` (in :mod:`.cli_check`).
 
-Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--debug``).
+``mesh`` takes its settings from flags, from a recipe file (``--recipe FILE``, see
+:mod:`.recipe`), or both (flags given on the command line override the file).
+
+Exit codes: 0 success, 1 a print check failed (``mesh --check``), 2 bad input (one line on
+stderr, no traceback unless ``--debug``).
 """
 from __future__ import annotations
 
@@ -47,21 +51,28 @@ def build_parser() -> argparse.ArgumentParser:
     ins.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     ins.set_defaults(func=cmd_inspect)
 
-    m = subs.add_parser("mesh", help="extract surfaces and write mesh files + a JSON report")
-    _input_args(m)
-    m.add_argument("--out", required=True, help="output folder")
-    m.add_argument("--level", type=float, action="append", default=[], metavar="VALUE",
+    m = subs.add_parser("mesh", help="extract surfaces and write mesh files + a JSON report",
+                        description="Extract, smooth, decimate and write surfaces. Settings come from "
+                                    "the flags and/or a recipe file (--recipe; flags override it).")
+    _input_args(m, required=False)
+    m.add_argument("--recipe", metavar="FILE", help="TOML recipe with the settings (e.g. OUT/recipe.toml "
+                                                    "of an earlier run); flags given here override it")
+    m.add_argument("--out", help="output folder (required without a recipe)")
+    m.add_argument("--level", type=float, action="append", metavar="VALUE",
                    help="isovalue for a scalar scan (repeat for several surfaces)")
-    m.add_argument("--labels", default="all", help="all, or values/names: 1,5,7 or liver,spleen")
-    m.add_argument("--format", default="stl", help="comma list of stl, ply, obj (default stl)")
-    m.add_argument("--space", choices=("RAS", "LPS"), default="RAS",
+    m.add_argument("--labels", help="all (default), or values/names: 1,5,7 or liver,spleen")
+    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, glb, blend, png (default stl); "
+                                    "3mf also writes one combined print file, glb one file with every "
+                                    "surface, blend a Blender scene, png its Cycles render (need bpy)")
+    m.add_argument("--space", choices=("RAS", "LPS"),
                    help="coordinate space of the written vertices (default RAS)")
-    m.add_argument("--no-cap", dest="cap", action="store_false",
+    m.add_argument("--no-cap", dest="cap", action="store_false", default=None,
                    help="leave isosurfaces open where they leave the volume (default: capped, closed)")
-    m.add_argument("--keep-largest", action="store_true", help="keep only the largest component per surface")
-    m.add_argument("--min-component", type=float, default=0.0, metavar="MM3",
+    m.add_argument("--keep-largest", action="store_true", default=None,
+                   help="keep only the largest component per surface")
+    m.add_argument("--min-component", dest="min_component_mm3", type=float, metavar="MM3",
                    help="drop components smaller than this volume in mm³")
-    m.add_argument("--smooth", default="organ",
+    m.add_argument("--smooth",
                    help="smoothing preset or filter: organ (default: Taubin kept inside each voxel cell, "
                         "volumes restored), light, strong, taubin, laplacian, hc, mean_curvature, "
                         "normal_mean, normal_median, none (raw surface)")
@@ -72,10 +83,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="no vertex moves further than this from the unsmoothed surface")
     m.add_argument("--damping-distance", type=float, metavar="MM",
                    help="smooth less where another structure is closer than this (Mönch et al. 2010)")
-    m.add_argument("--staircase", choices=("auto", "on", "off"), default="auto",
+    m.add_argument("--staircase", choices=("auto", "on", "off"),
                    help="extra slice-axis smoothing for thick slices (auto: slice >= 1.5x in-plane)")
-    m.add_argument("--report", help="report path (default OUT/report.json)")
-    m.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    m.add_argument("--decimate", type=float, metavar="RATIO",
+                   help="after smoothing, keep this fraction of the faces (0.1 = 10 %%); seams stay shared, "
+                        "shells closed; the error in mm is measured and reported")
+    m.add_argument("--target-faces", type=int, metavar="N", help="decimate to N faces in all")
+    m.add_argument("--max-error", type=float, metavar="MM",
+                   help="decimate as far as the surface stays within MM of the smoothed one")
+    m.add_argument("--check", action="store_true", default=None,
+                   help="run the 3D-print checks on the result (exit code 1 when one fails)")
+    m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
+    m.add_argument("--min-wall", type=float, metavar="MM", help="thinnest printable wall (overrides the profile)")
+    m.add_argument("--min-gap", type=float, metavar="MM", help="narrowest gap that stays open (overrides the profile)")
+    m.add_argument("--report", help="report path (default OUT/report.json; recipe.toml is written beside it)")
+    m.add_argument("--overwrite", action="store_true", default=None, help="replace existing output files")
     m.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     m.set_defaults(func=cmd_mesh)
 
@@ -84,8 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _input_args(sp: argparse.ArgumentParser) -> None:
-    sp.add_argument("path", nargs="+", help="DICOM folder or files, .nii/.nii.gz, .nrrd/.nhdr/.seg.nrrd")
+def _input_args(sp: argparse.ArgumentParser, required: bool = True) -> None:
+    sp.add_argument("path", nargs="+" if required else "*",
+                    help="DICOM folder or files, .nii/.nii.gz, .nrrd/.nhdr/.seg.nrrd")
     sp.add_argument("--series", help="DICOM series: UID or number when a folder holds several")
     sp.add_argument("--volume", type=int, dest="volume_index", help="volume index of a 4D NIfTI")
     sp.add_argument("--label-table", help="label names/colours (TotalSegmentator JSON, Slicer .ctbl, ITK-SNAP)")
@@ -107,24 +130,83 @@ def cmd_inspect(args) -> int:
     return EXIT_OK
 
 
-def cmd_mesh(args) -> int:
-    from .pipeline import Recipe, run
+#: ``mesh`` flags that set a Recipe field of the same name as given
+_RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
+                 "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
+                 "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
+                 "profile", "min_wall", "min_gap", "report", "overwrite")
 
-    recipe = Recipe(
-        input=_path_arg(args.path), out_dir=args.out, series=args.series, volume_index=args.volume_index,
-        label_table=args.label_table, labels=_split(args.labels) if args.labels != "all" else "all",
-        levels=args.level, space=args.space, cap=args.cap, keep_largest=args.keep_largest,
-        min_component_mm3=args.min_component, smooth=args.smooth, iterations=args.iterations,
-        lam=args.lam, mu=args.mu, max_deviation=args.max_deviation,
-        damping_distance=args.damping_distance, staircase=args.staircase,
-        formats=_formats(args.format), report=args.report, overwrite=args.overwrite)
+
+def recipe_from_args(args):
+    """The Recipe of a ``mesh`` command line: the recipe file (if any), then every flag given."""
+    from .pipeline import Recipe
+
+    if args.recipe:
+        from .recipe import load_recipe
+
+        recipe = load_recipe(args.recipe)
+    else:
+        recipe = Recipe(out_dir="")
+    if args.path:
+        recipe.input = _path_arg(args.path)
+    if args.out is not None:
+        recipe.out_dir = args.out
+    if args.level:
+        recipe.levels = list(args.level)
+    if args.labels is not None:
+        recipe.labels = _split(args.labels) if args.labels.strip().lower() != "all" else "all"
+    if args.format is not None:
+        recipe.formats = _formats(args.format)
+    targets = ("decimate", "target_faces", "max_error")
+    if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
+        for t in targets:
+            setattr(recipe, t, None)
+    for name in _RECIPE_FLAGS:
+        value = getattr(args, name)
+        if value is not None:
+            setattr(recipe, name, value)
+    if not recipe.input:
+        raise AnatomeshError("no input: give a scan path or a --recipe whose [input] has a path")
+    if not recipe.out_dir:
+        raise AnatomeshError("no output folder: give --out DIR (or a --recipe whose [output] has dir)")
+    return recipe
+
+
+def cmd_mesh(args) -> int:
+    from .pipeline import run
+
+    recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"))
-    for w in result.report.get("warnings", []):
+    rep = result.report
+    for w in rep.get("warnings", []):
         print(f"warning: {w}", file=sys.stderr)
-    n_closed = sum(1 for s in result.report["surfaces"] if s["closed"])
-    print(f"{len(result.surfaces)} surfaces ({n_closed} closed) in {recipe.space} mm -> {args.out}; "
-          f"report {result.report_path}")
+    n_closed = sum(1 for s in rep["surfaces"] if s["closed"])
+    line = f"{len(result.surfaces)} surfaces ({n_closed} closed) in {recipe.space} mm"
+    dec = rep.get("decimation")
+    if dec:
+        line += (f", decimated {dec['faces_before']} -> {dec['faces_after']} faces "
+                 f"(max error {dec['hausdorff_mm']:.3g} mm)")
+    print(f"{line} -> {recipe.out_dir}; report {result.report_path}")
+    check = rep.get("print_check")
+    if check is not None:
+        failed = [p["name"] for p in check["parts"] if not p["passed"]]
+        fused = [f"{g['a']}+{g['b']}" for g in check["gaps"] if g.get("fuses")]
+        if check["passed"]:
+            print(f"print check ({check['profile'].get('name', recipe.profile)}): passed")
+        else:
+            what = [f"{len(failed)} part(s) fail {_short(failed)}"] if failed else []
+            what += [f"{len(fused)} pair(s) would fuse {_short(fused)}"] if fused else []
+            print(f"print check ({check['profile'].get('name', recipe.profile)}): FAILED, "
+                  f"{'; '.join(what) or 'parts intersect'}; details in the report's print_check",
+                  file=sys.stderr)
+            return EXIT_CHECK_FAILED
     return EXIT_OK
+
+
+def _short(names: List[str], n: int = 4) -> str:
+    if not names:
+        return ""
+    return "(" + ", ".join(names[:n]) + (f", +{len(names) - n} more" if len(names) > n else "") + ")"
 
 
 def _split(text: str) -> List[str]:
@@ -132,8 +214,8 @@ def _split(text: str) -> List[str]:
 
 
 def _formats(text: str) -> List[str]:
-    fmts = [f.lower() for f in _split(text)]
-    from .export import FORMATS
+    fmts = [f.lower().lstrip(".") for f in _split(text)]
+    from .pipeline import FORMATS
     bad = [f for f in fmts if f not in FORMATS]
     if bad or not fmts:
         raise AnatomeshError(f"unknown --format {','.join(bad) or text!r}; use a comma list of {', '.join(FORMATS)}")

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import math
 import os
 import sys
 import time
@@ -80,55 +79,10 @@ def enable_addon():
     pkg.register()
 
 
-def setup_look(scene, collection):
-    """See-through lungs, soft light, a neutral background."""
-    for obj in collection.objects:
-        if "lung" in obj.get("anatomesh_name", ""):
-            obj["anatomesh_alpha"] = 0.25
-            obj["anatomesh_oriented"] = 1.0
-    world = scene.world or bpy.data.worlds.new("World")
-    scene.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    bg = world.node_tree.nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.09, 0.1, 0.12, 1.0)
-        bg.inputs["Strength"].default_value = 0.5
-    # sun lights placed relative to the camera: a key from above-left, a weak fill from the right
-    from mathutils import Matrix, Vector
-
-    cam = scene.camera
-    centre = Vector(tuple(sum((Vector(o.matrix_world @ Vector(c)) for o in collection.objects
-                                for c in o.bound_box), Vector()) / (8 * len(collection.objects))))
-    to_cam = (cam.location - centre).normalized()
-    for name, energy, turn, raise_ in (("Key", 3.0, -35.0, 45.0), ("Fill", 1.0, 60.0, 5.0)):
-        light = bpy.data.lights.new(f"Anatomesh {name}", "SUN")
-        light.energy = energy
-        light.angle = 0.15
-        obj = bpy.data.objects.new(light.name, light)
-        scene.collection.objects.link(obj)
-        d = Matrix.Rotation(math.radians(turn), 3, "Z") @ to_cam
-        horizontal = Vector((d.x, d.y, 0.0)).normalized()
-        d = horizontal * math.cos(math.radians(raise_)) + Vector((0, 0, math.sin(math.radians(raise_))))
-        obj.rotation_euler = (-d).to_track_quat("-Z", "Y").to_euler()
-
-
-def render(scene, path: str, samples: int, size) -> None:
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = True
-    scene.cycles.transparent_max_bounces = 16
-    try:
-        scene.cycles.use_denoising = True
-        scene.cycles.denoiser = "OPENIMAGEDENOISE"
-    except (AttributeError, TypeError):
-        pass
-    scene.render.resolution_x, scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "PNG"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
+def headless():
+    """The enabled add-on's ``addon.headless`` module (scene look and the Cycles render)."""
+    package = bpy.types.ANATOMESH_OT_extract.__module__.rsplit(".addon.", 1)[0]
+    return importlib.import_module(package + ".addon.headless")
 
 
 def main():
@@ -148,7 +102,8 @@ def main():
     print(f"{len(coll.objects)} surfaces in '{coll.name}' ({time.perf_counter() - t0:.1f} s)")
     # a slightly raised, turned view reads better than a flat front view
     bpy.ops.anatomesh.frame_camera(collection=coll.name, elevation=args.elevation, azimuth=args.azimuth)
-    setup_look(scene, coll)
+    look = headless()
+    look.setup_look(scene, coll)
     os.makedirs(args.out, exist_ok=True)
     stem = Path(args.input).name.split(".")[0]
     blend = os.path.join(os.path.abspath(args.out), f"{stem}.blend")
@@ -157,7 +112,7 @@ def main():
     if not args.no_render:
         png = os.path.join(os.path.abspath(args.out), f"{stem}.png")
         t1 = time.perf_counter()
-        render(scene, png, args.samples, args.size)
+        look.render(scene, png, args.samples, args.size)
         print(f"rendered {png} ({time.perf_counter() - t1:.1f} s)")
 
 

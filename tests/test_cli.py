@@ -1,5 +1,7 @@
-"""The `anatomesh` command line end to end on real data: inspect, mesh, bad input."""
+"""The `anatomesh` command line end to end on real data: inspect, mesh (decimation, print checks,
+scene formats, recipes), bad input and exit codes (0 ok, 1 a print check failed, 2 bad input)."""
 import json
+import os
 import subprocess
 import sys
 
@@ -157,3 +159,93 @@ def test_console_script_entry_point(tmp_path):
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["space"] == "RAS"
+
+
+# ---------------------------------------------------------------------------------------------
+# decimation, print checks, scene formats, recipes
+# ---------------------------------------------------------------------------------------------
+def test_mesh_decimate_flag_reports_the_error_in_mm(capsys, tmp_path):
+    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path, "--labels", "spleen,kidney_left",
+                         "--decimate", "0.3")
+    assert code == 0, err
+    assert "decimated" in out and "max error" in out
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["recipe"]["decimate"] == 0.3
+    for s in rep["surfaces"]:
+        assert s["faces"] < s["faces_before"]
+        assert s["closed"] and s["manifold"]
+        assert 0 < s["decimation_mean_error_mm"] < s["decimation_max_error_mm"] < 3.0
+        assert "decimation_volume_change_pct" in s
+
+
+def test_mesh_check_exit_codes(capsys, tmp_path):
+    # the spleen is a compact solid: it passes; the liver has thin rims in this 3 mm map: it fails
+    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "spleen", "--labels", "spleen", "--check")
+    assert code == 0, err
+    assert "print check (fdm): passed" in out
+    assert json.loads((tmp_path / "spleen" / "report.json").read_text())["print_check"]["passed"] is True
+    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "liver", "--labels", "liver", "--check")
+    assert code == 1
+    assert "FAILED" in err and "liver" in err
+    pc = json.loads((tmp_path / "liver" / "report.json").read_text())["print_check"]
+    assert pc["passed"] is False and pc["parts"][0]["min_wall_mm"] < pc["profile"]["min_wall"]
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path / "bad", "--labels", "spleen", "--check",
+                       "--min-wall", "-1")
+    assert code == 2 and "--min-wall" in err
+
+
+def test_mesh_scene_formats_and_overwrite_refusal(capsys, tmp_path):
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path, "--labels", "spleen,liver",
+                       "--format", "3mf,glb")
+    assert code == 0, err
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["example_seg.3mf", "example_seg.glb", "liver.3mf", "recipe.toml", "report.json",
+                     "spleen.3mf"]
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["files"]["glb"] == "example_seg.glb"
+    before = (tmp_path / "example_seg.glb").stat().st_mtime_ns
+    code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path, "--labels", "kidney_left", "--format", "glb")
+    assert code == 2 and "--overwrite" in err  # the GLB (and report/recipe) of the first run exist
+    assert (tmp_path / "example_seg.glb").stat().st_mtime_ns == before
+
+
+def test_mesh_recipe_file_with_flags_overriding(capsys, tmp_path):
+    scans = tmp_path / "project"
+    scans.mkdir()
+    (scans / "organs.toml").write_text(
+        f'[input]\npath = "{os.path.relpath(SEG, scans)}"\nlabels = ["spleen"]\n'
+        '[smoothing]\nmethod = "none"\n[decimation]\nratio = 0.2\n'
+        '[output]\ndir = "out"\nformats = ["stl", "ply"]\n')
+    code, out, err = run(capsys, "mesh", "--recipe", scans / "organs.toml", "--labels", "liver,kidney_left",
+                         "--max-error", "0.5")
+    assert code == 0, err
+    out_dir = scans / "out"  # relative to the recipe's folder
+    rep = json.loads((out_dir / "report.json").read_text())
+    assert sorted(s["name"] for s in rep["surfaces"]) == ["kidney_left", "liver"]  # the flag won
+    assert rep["smoothing"]["method"] == "none" and (out_dir / "liver.ply").exists()  # the file's
+    assert rep["decimation"]["target"] == {"max_error_mm": 0.5}  # the flag's target replaced the file's
+    # the stored recipe re-runs the same job
+    code, _, err = run(capsys, "mesh", "--recipe", out_dir / "recipe.toml", "--out", tmp_path / "again")
+    assert code == 0, err
+    again = json.loads((tmp_path / "again" / "report.json").read_text())
+    assert [(s["name"], s["faces"]) for s in again["surfaces"]] == \
+        [(s["name"], s["faces"]) for s in rep["surfaces"]]
+
+
+@pytest.mark.parametrize("text, words", [
+    ('[input]\npath = "x.nii.gz"\n[decimation]\nratio = 0.5\nerror = 1\n', ["'error'", "max_error_mm"]),
+    ('[output]\ndir = "o"\n', ["no input"]),
+])
+def test_mesh_bad_recipe_is_one_line_exit_2(capsys, tmp_path, text, words):
+    (tmp_path / "r.toml").write_text(text)
+    code, out, err = run(capsys, "mesh", "--recipe", tmp_path / "r.toml")
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    for w in words:
+        assert w in lines[0]
+
+
+def test_mesh_needs_an_output_folder(capsys):
+    code, _, err = run(capsys, "mesh", SEG)
+    assert code == 2 and "--out" in err

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Set up (first time) and run the main job on the bundled sample scan (TotalSegmentator example):
-# inspect the CT and its 41-label organ map, mesh every organ (smoothed, closed, seams shared) and
-# the CT's skin and bone into ./demo_out/, then build the Blender scene and render it with Cycles.
+# inspect the CT and its 41-label organ map, then mesh every organ (smoothed, closed, seams shared,
+# decimated to half the faces with the error in mm reported) into ./demo_out/: per-organ STL and
+# 3MF, one combined print-ready 3MF, a GLB for web viewers, the Blender scene (.blend) and its
+# Cycles render (PNG), report.json and recipe.toml; and the CT's skin and bone into ./demo_out/ct/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup_env.sh
@@ -9,9 +11,10 @@ PY="${ANATOMESH_VENV:-.venv}/bin/python"
 OUT="${1:-demo_out}"
 "$PY" -m anatomesh.core.cli inspect data/sample/example_ct_sm.nii.gz
 "$PY" -m anatomesh.core.cli inspect data/sample/example_seg.nii.gz
-"$PY" -m anatomesh.core.cli mesh data/sample/example_seg.nii.gz --out "$OUT" --format stl,ply --overwrite
+"$PY" -m anatomesh.core.cli mesh data/sample/example_seg.nii.gz --out "$OUT" --decimate 0.5 \
+  --format stl,3mf,glb,blend,png --overwrite
 "$PY" -m anatomesh.core.cli mesh data/sample/example_ct_sm.nii.gz --level -500 --level 300 \
   --out "$OUT/ct" --format stl --keep-largest --overwrite
-# the same organs in Blender (bpy module): coloured, smoothed live by the add-on, saved and rendered
-"$PY" examples/blender_import_labels.py --out "$OUT/blender"
-echo "demo output in $OUT/: per-organ STL+PLY and report.json, ct/ (skin and bone), blender/ (.blend + PNG)"
+echo "demo output in $OUT/: per-organ STL+3MF, example_seg.3mf (all organs), example_seg.glb,"
+echo "example_seg.blend + example_seg.png (Cycles), report.json, recipe.toml; ct/ (skin and bone)"
+echo "run it again from the recipe: anatomesh mesh --recipe $OUT/recipe.toml --overwrite"
