@@ -21,6 +21,7 @@ from typing import Dict, Iterable, Optional, Sequence
 import bpy
 import numpy as np
 
+from ..core._export_common import srgb_to_linear
 from . import bridge
 
 #: custom properties set on every surface object
@@ -95,7 +96,7 @@ def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarra
         if key not in obj:
             obj[key] = default
     _property_ui(obj)
-    obj.color = (*[float(c) for c in color[:3]], 1.0)  # the Solid viewport's "Object" colour
+    obj.color = linear_rgba(color)  # the Solid viewport's "Object" colour
     me.materials.append(surface_material(name, color, render_method))
     collection.objects.link(obj)
     return obj
@@ -139,6 +140,13 @@ def set_render_method(objects: Iterable[bpy.types.Object], method: str) -> None:
 # ---------------------------------------------------------------------------------------------
 # materials
 # ---------------------------------------------------------------------------------------------
+def linear_rgba(color: Sequence[float]) -> tuple:
+    """A label colour (sRGB-encoded 0..1, as label tables and ``Mesh.color`` give it) as the
+    linear RGBA Blender's colour properties and shader sockets hold (the glTF/3MF writers convert
+    the same way, so every output shows the same colour)."""
+    return (*[float(c) for c in srgb_to_linear(np.asarray(color[:3], float))], 1.0)
+
+
 def surface_material(name: str, color: Sequence[float], render_method: str = "DITHERED") -> bpy.types.Material:
     """A new material: Principled BSDF base colour ``color``, opacity from the object.
 
@@ -147,7 +155,7 @@ def surface_material(name: str, color: Sequence[float], render_method: str = "DI
     mat = bpy.data.materials.new(name)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
-    rgba = (*[float(c) for c in color[:3]], 1.0)
+    rgba = linear_rgba(color)
     mat.diffuse_color = rgba  # viewport Solid mode "Material" colour
     nt = mat.node_tree
     nodes, links = nt.nodes, nt.links

@@ -17,6 +17,7 @@ import pytest
 from conftest import shared  # tests/conftest.py (pytest puts tests/ on sys.path)
 
 from anatomesh.core import load  # the checkout's core, for expected values
+from anatomesh.core._export_common import linear_to_srgb, srgb_to_linear
 
 TABLE_KEY = "total"
 
@@ -80,10 +81,10 @@ def test_objects_names_materials_and_properties(scan, volume, table_path, seg_pa
         mat = o.data.materials[0]
         bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
         colour = tuple(bsdf.inputs["Base Color"].default_value)[:3]
-        assert colour == pytest.approx(tuple(volume.labels[v].color), abs=1e-6)
+        assert colour == pytest.approx(tuple(srgb_to_linear(volume.labels[v].color)), abs=1e-6)
         assert mat.surface_render_method == "DITHERED"
     # anatomical colours, not one grey: the liver is brown-red, a vertebra ivory
-    liver = objs[5].data.materials[0].diffuse_color
+    liver = linear_to_srgb(objs[5].data.materials[0].diffuse_color[:3])
     assert liver[0] > liver[2] + 0.2
     us = bpy.context.scene.unit_settings
     assert (us.length_unit, us.scale_length) == ("MILLIMETERS", pytest.approx(0.001))
