@@ -13,6 +13,10 @@ Reference timings, all warm (best of N, wall clock; the three run in turn, N tim
 * ``np.count_nonzero(vol > level)``: one numpy pass over the data;
 * ``skimage.measure.marching_cubes`` (Lewiner), full mode only (and bone in --quick).
 
+Then each pass of ours alone (classify, count, vertices, triangles; interleaved with the numpy
+pass) and the *write floor*: ``np.empty`` + ``fill`` of three arrays the size of the output mesh,
+the cost of producing the output bytes alone (page faults and one memset), before any extraction.
+
 Also measured in fresh subprocesses: the peak memory of one call (VmHWM after resetting it via
 /proc/self/clear_refs, and the tracemalloc peak) against the input and output sizes, and how much
 the first call in a new process costs over a warm call (numba's cache already filled).
@@ -51,16 +55,67 @@ def best_of(fn, repeat):
     return min(times), out
 
 
-def interleaved(fns, repeat):
-    """Best time of each callable, running them in turn (a shared machine's speed drifts)."""
-    best = [float("inf")] * len(fns)
+def interleaved(fns, repeat, medians=None):
+    """Best time of each callable, running them in turn (a shared machine's speed drifts).
+
+    ``medians``: a list that receives each callable's median time (the spread of a noisy run).
+    """
+    times = [[] for _ in fns]
     outs = [None] * len(fns)
     for _ in range(repeat):
         for i, fn in enumerate(fns):
             t0 = time.perf_counter()
             outs[i] = fn()
-            best[i] = min(best[i], time.perf_counter() - t0)
-    return best, outs
+            times[i].append(time.perf_counter() - t0)
+    if medians is not None:
+        medians[:] = [float(np.median(t)) for t in times]
+    return [min(t) for t in times], outs
+
+
+def pass_times(data, affine, level, repeat):
+    """Best time of each pass of ``isosurface`` (the private kernels, 2 threads) and of one
+    numpy pass, interleaved: where the time goes."""
+    import importlib
+
+    from anatomesh.core.extract import _mc_kernels as K
+    from anatomesh.core.extract.mc_table import TRI_COUNT
+
+    iso = importlib.import_module("anatomesh.core.extract.isosurface")
+    view, perm = iso._sweep_view(data)
+    m, n, flip = iso._frame(np.asarray(affine, float), perm)
+    th, _ = iso._thresholds([level], view.dtype)
+    nz, ny, nx = view.shape
+    bits = np.zeros((1, nz, ny, (nx + 63) // 64), np.uint64)
+    n_above = np.zeros((1, nz), np.int64)
+    rows = [np.empty((nz, ny), np.int32) for _ in range(4)]
+    slab_v, slab_t = np.empty(nz, np.int64), np.empty(nz, np.int64)
+    K.classify(view, th, 0, bits, n_above)
+    K.count(bits[0], nx, TRI_COUNT, *rows, slab_v, slab_t)
+    v_start, n_v = iso._exclusive_cumsum(slab_v)
+    t_start, n_t = iso._exclusive_cumsum(slab_t)
+    verts, normals = np.empty((n_v, 3), np.float32), np.empty((n_v, 3), np.float32)
+    faces = np.empty((n_t, 3), np.int32)
+    table = iso._TRI_EDGES_FLIPPED if flip else iso._TRI_EDGES
+    fns = [lambda: K.classify(view, th, 0, bits, n_above),
+           lambda: K.count(bits[0], nx, TRI_COUNT, *rows, slab_v, slab_t),
+           lambda: K.emit_vertices(view, bits[0], float(level), iso.T_MIN, 0, m, n, *rows[:3], v_start,
+                                   verts, normals),
+           lambda: K.emit_triangles(bits[0], nx, TRI_COUNT, table, *rows, v_start, t_start, faces),
+           lambda: output_write(n_v, n_t),
+           lambda: np.count_nonzero(data > level)]
+    best, _ = interleaved(fns, repeat)
+    return dict(zip(["classify", "count", "vertices", "triangles", "write_floor", "numpy"], best),
+                n_vertices=n_v, n_faces=n_t)
+
+
+def output_write(n_vertices, n_faces):
+    """The floor of any isosurface extractor's output: allocate the three output arrays of this
+    size and write every byte once (np.empty + fill: page faults and a memset, one thread)."""
+    out = (np.empty((n_vertices, 3), np.float32), np.empty((n_vertices, 3), np.float32),
+           np.empty((n_faces, 3), np.int32))
+    for a in out:
+        a.fill(1)
+    return out
 
 
 def vtk_flying_edges(data, level):
@@ -174,15 +229,18 @@ def main() -> None:
     for name, data in datasets:
         for tissue, level in LEVELS.items():
             run_vtk, _keep = vtk_flying_edges(data, level)
+            med = []
             (ours_t, vtk_t, np_t), (mesh, poly, _) = interleaved(
                 [lambda: isosurface(data, level, affine=vol.affine), run_vtk,
-                 lambda: np.count_nonzero(data > level)], repeat)
+                 lambda: np.count_nonzero(data > level)], repeat, med)
             sk_t = None
             if not args.quick or (tissue == "bone" and name.startswith("chest 512")):
                 from skimage import measure
                 sk_t, _ = best_of(lambda: measure.marching_cubes(data, level, method="lewiner"), 1)
             row = dict(data=name, level=f"{tissue} {level}", tris=mesh.n_faces,
-                       vtk_tris=poly.GetNumberOfPolys(), ours=ours_t, vtk=vtk_t, numpy=np_t, skimage=sk_t)
+                       vtk_tris=poly.GetNumberOfPolys(), ours=ours_t, vtk=vtk_t, numpy=np_t, skimage=sk_t,
+                       ratio_median=med[0] / med[2],
+                       passes=pass_times(data, vol.affine, level, repeat))
             if not args.quick:
                 pts, polys = vtk_arrays(poly)
                 row["ours_bad"] = (degenerate_faces(mesh.vertices, mesh.faces).size,
@@ -194,13 +252,30 @@ def main() -> None:
     print(f"\nwarm wall-clock seconds, best of {repeat} (ours, VTK and numpy in turn); load average "
           f"{os.getloadavg()[0]:.1f} (2 cores); VTK: vtkFlyingEdges3D, STDThread, 2 threads, normals on")
     head = (f"{'data':22s} {'level':9s} {'triangles':>10s} {'ours':>7s} {'VTK FE':>7s} {'ours/VTK':>8s} "
-            f"{'numpy':>7s} {'ours/np':>7s} {'skimage':>8s}")
+            f"{'numpy':>7s} {'ours/np':>7s} {'(median)':>8s} {'skimage':>8s}")
     print(head)
     print("-" * len(head))
     for r in rows:
         sk = f"{r['skimage']:8.2f}" if r["skimage"] is not None else f"{'-':>8s}"
         print(f"{r['data']:22s} {r['level']:9s} {r['tris']:>10,d} {r['ours']:7.3f} {r['vtk']:7.3f} "
-              f"{r['ours'] / r['vtk']:8.2f} {r['numpy']:7.3f} {r['ours'] / r['numpy']:7.2f} {sk}")
+              f"{r['ours'] / r['vtk']:8.2f} {r['numpy']:7.3f} {r['ours'] / r['numpy']:7.2f} "
+              f"{r['ratio_median']:8.2f} {sk}")
+    print("targets: ours/VTK <= 0.8; ours/np <= 3 (best of the interleaved runs; median in brackets)")
+
+    print("\nwhere the time goes (best of each pass, ms; 2 threads except numpy and the write floor):")
+    head = (f"{'data':22s} {'level':9s} {'classify':>8s} {'count':>6s} {'verts':>6s} {'tris':>6s} "
+            f"{'sum':>6s} {'numpy':>6s} {'sum/np':>6s} {'write floor':>11s} {'floor/np':>8s}")
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        p = r["passes"]
+        total = p["classify"] + p["count"] + p["vertices"] + p["triangles"]
+        print(f"{r['data']:22s} {r['level']:9s} {1e3 * p['classify']:8.1f} {1e3 * p['count']:6.1f} "
+              f"{1e3 * p['vertices']:6.1f} {1e3 * p['triangles']:6.1f} {1e3 * total:6.1f} "
+              f"{1e3 * p['numpy']:6.1f} {total / p['numpy']:6.2f} {1e3 * p['write_floor']:11.1f} "
+              f"{p['write_floor'] / p['numpy']:8.2f}")
+    print("write floor: np.empty + fill of arrays the size of the output (vertices, normals, faces),\n"
+          "one thread: what writing the mesh alone costs, before any extraction work")
     if not args.quick:
         print("\nzero-area faces / duplicate vertices (ours vs VTK):")
         for r in rows:

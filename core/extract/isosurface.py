@@ -49,9 +49,10 @@ from .mc_table import TRI_COUNT, TRI_EDGES
 T_MIN = 1e-3
 
 _MAX_INDEX = 2**31 - 1
-#: the case table with every triangle's winding reversed (for affines that flip orientation)
-_TRI_EDGES_FLIPPED = np.ascontiguousarray(
-    TRI_EDGES.reshape(256, -1, 3)[:, :, [0, 2, 1]].reshape(256, -1))
+#: the case table for the kernels: uint8, padding (-1) replaced by a valid edge number (0)
+_TRI_EDGES = np.where(TRI_EDGES < 0, 0, TRI_EDGES).astype(np.uint8)
+#: the same with every triangle's winding reversed (for affines that flip orientation)
+_TRI_EDGES_FLIPPED = np.ascontiguousarray(_TRI_EDGES.reshape(256, -1, 3)[:, :, [0, 2, 1]].reshape(256, -1))
 
 
 def isosurface(volume, level: float, affine: Optional[np.ndarray] = None, space: Optional[str] = None,
@@ -150,7 +151,7 @@ def _extract(view, bits, level, pad, dims, m, n, flip, space, cap) -> Mesh:
     faces = np.empty((n_faces, 3), np.int32)
     K.emit_vertices(view, bits, float(level), T_MIN, pad, m, n, n_xe, n_ye, n_ze, v_start, vertices,
                     normals)
-    K.emit_triangles(bits, nxv, TRI_COUNT, _TRI_EDGES_FLIPPED if flip else TRI_EDGES,
+    K.emit_triangles(bits, nxv, TRI_COUNT, _TRI_EDGES_FLIPPED if flip else _TRI_EDGES,
                      n_xe, n_ye, n_ze, n_tri, v_start, t_start, faces)
     return _mesh(vertices, faces, normals, level, space, cap)
 

@@ -270,6 +270,58 @@ def test_random_integers_at_an_integer_level(seed):
     assert frac[frac > 0].min() >= T_MIN * 0.99
 
 
+def reference_triangles(vals, level):
+    """Each cell's triangles straight from the case table, as triples of edge keys
+    (i, j, k, axis) in array index space: what the kernels must produce, cell by cell."""
+    above = vals >= level
+    out = []
+    for i in range(vals.shape[0] - 1):
+        for j in range(vals.shape[1] - 1):
+            for k in range(vals.shape[2] - 1):
+                # table corner c is at kernel frame offset (dx, dy, dz) = array offset (dz, dy, dx)
+                case = sum(int(above[i + dz, j + dy, k + dx]) << c
+                           for c, (dx, dy, dz) in enumerate(mc_table.CORNERS))
+                keys = []
+                for e in mc_table.TRI_EDGES[case][:3 * mc_table.TRI_COUNT[case]]:
+                    c0, c1 = mc_table.EDGE_CORNERS[e]
+                    d0, d1 = mc_table.CORNERS[c0], mc_table.CORNERS[c1]
+                    axis = 2 - int(np.argmax(d1 != d0))  # frame axis x, y, z = array axis 2, 1, 0
+                    keys.append((i + d0[2], j + d0[1], k + d0[0], axis))
+                out += [tuple(keys[t:t + 3]) for t in range(0, len(keys), 3)]
+    return out
+
+
+def canonical(tri):
+    """A triangle's cyclic rotation starting at its smallest key (keeps the winding)."""
+    r = tri.index(min(tri))
+    return tri[r:] + tri[:r]
+
+
+@pytest.mark.parametrize("kind", ["float", "integer-ties"])
+def test_triangles_match_the_case_table_cell_by_cell(kind):
+    """Every cell's triangles, vertices and winding are the table's (rows span three 64-bit
+    words, so word boundaries and each slab's last cells are crossed)."""
+    rng = np.random.default_rng(7)
+    if kind == "float":
+        vals, level = rng.normal(size=(7, 8, 150)), 0.2
+    else:
+        vals, level = rng.integers(0, 3, size=(7, 8, 150)).astype(np.int16), 1
+    mesh = isosurface(vals, level)  # identity affine: vertices in array index coordinates
+    p = mesh.vertices.astype(np.float64)
+    frac = np.abs(p - np.round(p))
+    axis = np.argmax(frac, axis=1)
+    assert np.all(frac.max(axis=1) >= T_MIN * 0.99)  # every vertex strictly inside its edge
+    low = np.round(p).astype(int)
+    rows = np.arange(len(p))
+    low[rows, axis] = np.floor(p[rows, axis]).astype(int)
+    keys = [tuple(low[v]) + (int(axis[v]),) for v in range(len(p))]
+    assert len(set(keys)) == len(keys)  # one vertex per crossed edge
+    got = sorted(canonical(tuple(keys[v] for v in f)) for f in mesh.faces)
+    # the frame (x, y, z) = array axes (2, 1, 0) reverses orientation: the table's winding flips
+    want = sorted(canonical((a, c, b)) for a, b, c in reference_triangles(vals, level))
+    assert len(got) == len(want) and got == want
+
+
 # ---------------------------------------------------------------------------------------------
 # real scans
 # ---------------------------------------------------------------------------------------------
