@@ -4,7 +4,7 @@ uniform grid and the shrinking-ball wall thickness. Private: use the wrappers in
 import numpy as np
 from numba import njit, prange
 
-from ._spatial_kernels import _closest_one
+from ._spatial_kernels import closest_xyz
 
 
 # ---------------------------------------------------------------------------------------------
@@ -219,33 +219,34 @@ def _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
     return n_out
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, rel_eps):
-    """All pairs (K, 2) int64 of faces that intersect and share no welded vertex."""
+    """All pairs (K, 2) int64 of faces that intersect and share no welded vertex (cells in
+    parallel: one pass counts, the second writes each cell's pairs at its offset)."""
     m = faces.shape[0]
     fmin = np.empty((m, 3))
     fmax = np.empty((m, 3))
-    for f in range(m):
+    for f in prange(m):
         for a in range(3):
             x0 = vertices[faces[f, 0], a]
             x1 = vertices[faces[f, 1], a]
             x2 = vertices[faces[f, 2], a]
             fmin[f, a] = min(x0, min(x1, x2))
             fmax[f, a] = max(x0, max(x1, x2))
-    ncell = start.shape[0] - 1
-    counts = np.zeros(ncell, np.int64)
+    busy = np.flatnonzero(start[1:] - start[:-1] > 1)
+    counts = np.zeros(busy.shape[0], np.int64)
     empty = np.zeros((0, 2), np.int64)
-    for c in range(ncell):
-        if start[c + 1] - start[c] > 1:
-            counts[c] = _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin,
-                                    h, dims, rel_eps, empty, 0)
-    total = counts.sum()
-    out = np.empty((total, 2), np.int64)
-    n = 0
-    for c in range(ncell):
-        if counts[c] > 0:
-            n = _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin, h, dims,
-                            rel_eps, out, n)
+    for b in prange(busy.shape[0]):
+        counts[b] = _cell_pairs(busy[b], start, items, vertices, faces, wfaces, fmin, fmax,
+                                origin, h, dims, rel_eps, empty, 0)
+    offs = np.zeros(busy.shape[0] + 1, np.int64)
+    for b in range(busy.shape[0]):
+        offs[b + 1] = offs[b] + counts[b]
+    out = np.empty((offs[-1], 2), np.int64)
+    for b in prange(busy.shape[0]):
+        if counts[b] > 0:
+            _cell_pairs(busy[b], start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
+                        dims, rel_eps, out, offs[b])
     return out
 
 
@@ -267,30 +268,29 @@ def shrinking_ball(points, inward, r0, vertices, faces, origin, h, dims, start, 
     empty = np.zeros(n, np.bool_)
     skip = np.zeros(0, np.bool_)
     for i in prange(n):
-        p = points[i].copy()
-        nv = inward[i].copy()
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        nx, ny, nz = inward[i, 0], inward[i, 1], inward[i, 2]
         r = r0[i]
-        q = np.empty(3)
         if not np.isfinite(r) or r <= 0:
             continue
         for _ in range(max_iter):
-            c = p + r * nv
-            d, f, feat = _closest_one(c, vertices, faces, origin, h, dims, start, items,
-                                      r * (1.0 - tol), skip, q)
+            cx, cy, cz = px + r * nx, py + r * ny, pz + r * nz
+            d, f, feat, qx, qy, qz = closest_xyz(cx, cy, cz, vertices, faces, origin, h, dims,
+                                                 start, items, r * (1.0 - tol), skip)
             if f < 0 or d >= r * (1.0 - tol):
                 empty[i] = True  # the ball is empty: an inscribed (medial) ball
                 break
-            pq = q - p
-            proj = nv[0] * pq[0] + nv[1] * pq[1] + nv[2] * pq[2]
+            ux, uy, uz = qx - px, qy - py, qz - pz
+            proj = nx * ux + ny * uy + nz * uz
             if proj <= 0.0:
                 break
             # separation angle at the centre between p and q
-            cp = p - c
-            cq = q - c
-            den = np.sqrt(_dot(cp, cp) * _dot(cq, cq))
-            if den > 0 and _dot(cp, cq) / den > min_sep_cos:
+            ax, ay, az = px - cx, py - cy, pz - cz
+            bx, by, bz = qx - cx, qy - cy, qz - cz
+            den = np.sqrt((ax * ax + ay * ay + az * az) * (bx * bx + by * by + bz * bz))
+            if den > 0 and (ax * bx + ay * by + az * bz) / den > min_sep_cos:
                 break
-            r_new = _dot(pq, pq) / (2.0 * proj)
+            r_new = (ux * ux + uy * uy + uz * uz) / (2.0 * proj)
             if r_new >= r:
                 break
             r = r_new

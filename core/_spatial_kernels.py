@@ -68,147 +68,145 @@ def build_grid(vertices, faces, origin, h, dims):
 # ---------------------------------------------------------------------------------------------
 # point-triangle distance
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _sub(a, b):
-    return a[0] - b[0], a[1] - b[1], a[2] - b[2]
-
-
-@njit(cache=True, inline="always")
-def _dot3(x0, x1, x2, y0, y1, y2):
-    return x0 * y0 + x1 * y1 + x2 * y2
+@njit(cache=True)
+def _on_segment(px, py, pz, ax, ay, az, bx, by, bz):
+    """Closest point to p on segment ab: (x, y, z, t) with t in [0, 1] along ab."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    uu = ux * ux + uy * uy + uz * uz
+    t = 0.0
+    if uu > 0.0:
+        t = min(1.0, max(0.0, ((px - ax) * ux + (py - ay) * uy + (pz - az) * uz) / uu))
+    return ax + t * ux, ay + t * uy, az + t * uz, t
 
 
 @njit(cache=True)
-def closest_on_triangle(p, a, b, c):
-    """Closest point to ``p`` on triangle abc (each (3,) float64): returns (x, y, z, feature) with
-    feature = vertex 0-2, edge 3-5 (ab, bc, ca), interior 6. Ericson 2004, §5.1.5. Scalar code:
-    no temporary arrays in the hot loop."""
-    abx, aby, abz = _sub(b, a)
-    acx, acy, acz = _sub(c, a)
-    apx, apy, apz = _sub(p, a)
-    d1 = _dot3(abx, aby, abz, apx, apy, apz)
-    d2 = _dot3(acx, acy, acz, apx, apy, apz)
+def closest_on_triangle(px, py, pz, vertices, ia, ib, ic):
+    """Closest point to (px, py, pz) on the triangle of vertex rows ia, ib, ic: returns
+    (x, y, z, feature) with feature = vertex 0-2, edge 3-5 (ab, bc, ca), interior 6. Ericson
+    2004, §5.1.5. Scalar reads, no temporary arrays in the hot loop."""
+    ax, ay, az = vertices[ia, 0], vertices[ia, 1], vertices[ia, 2]
+    bx, by, bz = vertices[ib, 0], vertices[ib, 1], vertices[ib, 2]
+    cx, cy, cz = vertices[ic, 0], vertices[ic, 1], vertices[ic, 2]
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
-        return a[0], a[1], a[2], VERT_A
-    bpx, bpy, bpz = _sub(p, b)
-    d3 = _dot3(abx, aby, abz, bpx, bpy, bpz)
-    d4 = _dot3(acx, acy, acz, bpx, bpy, bpz)
+        return ax, ay, az, VERT_A
+    bpx, bpy, bpz = px - bx, py - by, pz - bz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
     if d3 >= 0.0 and d4 <= d3:
-        return b[0], b[1], b[2], VERT_B
+        return bx, by, bz, VERT_B
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         den = d1 - d3
         v = d1 / den if den != 0.0 else 0.0
-        return a[0] + v * abx, a[1] + v * aby, a[2] + v * abz, EDGE_AB
-    cpx, cpy, cpz = _sub(p, c)
-    d5 = _dot3(abx, aby, abz, cpx, cpy, cpz)
-    d6 = _dot3(acx, acy, acz, cpx, cpy, cpz)
+        return ax + v * abx, ay + v * aby, az + v * abz, EDGE_AB
+    cpx, cpy, cpz = px - cx, py - cy, pz - cz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
     if d6 >= 0.0 and d5 <= d6:
-        return c[0], c[1], c[2], VERT_C
+        return cx, cy, cz, VERT_C
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         den = d2 - d6
         w = d2 / den if den != 0.0 else 0.0
-        return a[0] + w * acx, a[1] + w * acy, a[2] + w * acz, EDGE_CA
+        return ax + w * acx, ay + w * acy, az + w * acz, EDGE_CA
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         den = (d4 - d3) + (d5 - d6)
         w = (d4 - d3) / den if den != 0.0 else 0.0
-        return b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2]), EDGE_BC
+        return bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz), EDGE_BC
     den = va + vb + vc
-    if den == 0.0:  # degenerate triangle: fall back to the first vertex
-        return a[0], a[1], a[2], VERT_A
+    if not den > 0.0:  # degenerate triangle (a segment or a point): nearest of its edges
+        x, y, z, t = _on_segment(px, py, pz, ax, ay, az, bx, by, bz)
+        best = (x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2
+        feat = EDGE_AB
+        x2, y2, z2, t = _on_segment(px, py, pz, bx, by, bz, cx, cy, cz)
+        d2 = (x2 - px) ** 2 + (y2 - py) ** 2 + (z2 - pz) ** 2
+        if d2 < best:
+            x, y, z, best, feat = x2, y2, z2, d2, EDGE_BC
+        x2, y2, z2, t = _on_segment(px, py, pz, cx, cy, cz, ax, ay, az)
+        d2 = (x2 - px) ** 2 + (y2 - py) ** 2 + (z2 - pz) ** 2
+        if d2 < best:
+            x, y, z, best, feat = x2, y2, z2, d2, EDGE_CA
+        return x, y, z, feat
     v = vb / den
     w = vc / den
-    return (a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w,
-            INTERIOR)
-
-
-@njit(cache=True, inline="always")
-def _axis_gap(x, lo, h):
-    if x < lo:
-        return lo - x
-    if x > lo + h:
-        return x - lo - h
-    return 0.0
+    return ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w, INTERIOR
 
 
 @njit(cache=True)
-def _cell_box_dist2(p, origin, h, i, j, k):
-    gx = _axis_gap(p[0], origin[0] + i * h, h)
-    gy = _axis_gap(p[1], origin[1] + j * h, h)
-    gz = _axis_gap(p[2], origin[2] + k * h, h)
-    return gx * gx + gy * gy + gz * gz
+def closest_xyz(px, py, pz, vertices, faces, origin, h, dims, start, items, max_d, skip_face):
+    """Nearest point on the mesh to (px, py, pz) within ``max_d``, searching cells ring by ring
+    and skipping cells farther than the best triangle so far; no allocations.
 
-
-@njit(cache=True)
-def _closest_one(p, vertices, faces, origin, h, dims, start, items, max_d, skip_face, q):
-    """Nearest point on the mesh to ``p`` within ``max_d``; returns (dist, face, feature)."""
-    ci = np.empty(3, np.int64)
-    for a in range(3):
-        ci[a] = int(np.floor((p[a] - origin[a]) / h))
+    Returns (dist, face, feature, qx, qy, qz); face -1 and dist inf when nothing is that near."""
+    fx = (px - origin[0]) / h
+    fy = (py - origin[1]) / h
+    fz = (pz - origin[2]) / h
+    cx = int(np.floor(fx))
+    cy = int(np.floor(fy))
+    cz = int(np.floor(fz))
     # rings needed to reach the grid at all
     r0 = 0
-    for a in range(3):
-        if ci[a] < 0:
-            r0 = max(r0, -ci[a])
-        elif ci[a] >= dims[a]:
-            r0 = max(r0, ci[a] - dims[a] + 1)
+    for c0, d0 in ((cx, dims[0]), (cy, dims[1]), (cz, dims[2])):
+        if c0 < 0:
+            r0 = max(r0, -c0)
+        elif c0 >= d0:
+            r0 = max(r0, c0 - d0 + 1)
     best = max_d
     best2 = max_d * max_d
     best_f = -1
     best_feat = -1
-    rmax = 0
-    for a in range(3):
-        rmax = max(rmax, abs(ci[a]) + dims[a])
+    qx = np.nan
+    qy = np.nan
+    qz = np.nan
+    rmax = max(abs(cx) + dims[0], max(abs(cy) + dims[1], abs(cz) + dims[2]))
+    hh = h * h
     r = r0
     while r <= rmax:
         if (r - 1) * h > best:
             break
-        for di in range(-r, r + 1):
-            i = ci[0] + di
-            if i < 0 or i >= dims[0]:
-                continue
-            for dj in range(-r, r + 1):
-                j = ci[1] + dj
-                if j < 0 or j >= dims[1]:
-                    continue
-                edge = abs(di) == r or abs(dj) == r
-                step = 1 if edge else 2 * r
-                if r == 0:
-                    step = 1
-                dk = -r
-                while dk <= r:
-                    k = ci[2] + dk
+        for i in range(max(cx - r, 0), min(cx + r, dims[0] - 1) + 1):
+            gx = max(0.0, max(i - fx, fx - (i + 1)))
+            for j in range(max(cy - r, 0), min(cy + r, dims[1] - 1) + 1):
+                gy = max(0.0, max(j - fy, fy - (j + 1)))
+                edge = abs(i - cx) == r or abs(j - cy) == r
+                step = 1 if (edge or r == 0) else 2 * r
+                k = cz - r
+                while k <= cz + r:
                     if 0 <= k < dims[2]:
-                        if _cell_box_dist2(p, origin, h, i, j, k) <= best2:
+                        gz = max(0.0, max(k - fz, fz - (k + 1)))
+                        if (gx * gx + gy * gy + gz * gz) * hh <= best2:
                             c = (i * dims[1] + j) * dims[2] + k
                             for t in range(start[c], start[c + 1]):
                                 f = items[t]
                                 if skip_face.shape[0] > 0 and skip_face[f]:
                                     continue
-                                x, y, z, feat = closest_on_triangle(p, vertices[faces[f, 0]],
-                                                                    vertices[faces[f, 1]],
-                                                                    vertices[faces[f, 2]])
-                                d2 = (x - p[0]) ** 2 + (y - p[1]) ** 2 + (z - p[2]) ** 2
+                                x, y, z, feat = closest_on_triangle(
+                                    px, py, pz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])
+                                d2 = (x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2
                                 if d2 < best2 or (d2 == best2 and best_f >= 0 and f < best_f):
                                     best2 = d2
                                     best = np.sqrt(d2)
                                     best_f = f
                                     best_feat = feat
-                                    q[0] = x
-                                    q[1] = y
-                                    q[2] = z
-                    dk += step
+                                    qx = x
+                                    qy = y
+                                    qz = z
+                    k += step
         if best_f >= 0 and best <= r * h:
             break
         r += 1
     if best_f < 0:
-        return np.inf, -1, -1
-    return best, best_f, best_feat
+        return np.inf, -1, -1, np.nan, np.nan, np.nan
+    return best, best_f, best_feat, qx, qy, qz
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def closest_points(points, vertices, faces, origin, h, dims, start, items, max_d, skip_face):
     """For each point (P,3): distance, face (-1 if none within max_d), feature, closest point."""
     n = points.shape[0]
@@ -216,16 +214,17 @@ def closest_points(points, vertices, faces, origin, h, dims, start, items, max_d
     face = np.full(n, -1, np.int64)
     feat = np.full(n, -1, np.int64)
     close = np.full((n, 3), np.nan)
-    for i in range(n):
-        q = np.empty(3)
-        p = points[i].copy()
-        d, f, ft = _closest_one(p, vertices, faces, origin, h, dims, start, items, max_d[i],
-                                skip_face, q)
+    for i in prange(n):
+        d, f, ft, qx, qy, qz = closest_xyz(points[i, 0], points[i, 1], points[i, 2], vertices,
+                                           faces, origin, h, dims, start, items, max_d[i],
+                                           skip_face)
         if f >= 0:
             dist[i] = d
             face[i] = f
             feat[i] = ft
-            close[i] = q
+            close[i, 0] = qx
+            close[i, 1] = qy
+            close[i, 2] = qz
     return dist, face, feat, close
 
 
@@ -266,10 +265,12 @@ def _ray_tri_idx(o, d, vertices, ia, ib, ic, edge_tol):
 
 
 @njit(cache=True)
-def _cast_one(o, d, vertices, faces, origin, h, dims, start, items, tmin, tmax, skip_vertex,
-              count_all, edge_tol):
-    """Walk the grid along o + t d (Amanatides & Woo 1987). Returns (first t, first face,
-    number of crossings in (tmin, tmax), ambiguous)."""
+def _cast_one(ox, oy, oz, dx, dy, dz, vertices, faces, origin, h, dims, start, items, tmin,
+              tmax, skip_vertex, count_all, edge_tol):
+    """Walk the grid along o + t d (Amanatides & Woo 1987), scalars only. Returns (first t,
+    first face, number of crossings in (tmin, tmax), ambiguous)."""
+    o = (ox, oy, oz)
+    d = (dx, dy, dz)
     # clip to the grid box
     t0 = tmin
     t1 = tmax
@@ -288,34 +289,17 @@ def _cast_one(o, d, vertices, faces, origin, h, dims, start, items, tmin, tmax, 
             t1 = min(t1, tb)
     if t0 > t1:
         return np.inf, -1, 0, False
-    cell = np.empty(3, np.int64)
-    step = np.empty(3, np.int64)
-    tnext = np.empty(3)
-    tdelta = np.empty(3)
-    for a in range(3):
-        x = o[a] + t0 * d[a]
-        c = int(np.floor((x - origin[a]) / h))
-        cell[a] = min(max(c, 0), dims[a] - 1)
-        if d[a] > 0:
-            step[a] = 1
-            tnext[a] = (origin[a] + (cell[a] + 1) * h - o[a]) / d[a]
-            tdelta[a] = h / d[a]
-        elif d[a] < 0:
-            step[a] = -1
-            tnext[a] = (origin[a] + cell[a] * h - o[a]) / d[a]
-            tdelta[a] = -h / d[a]
-        else:
-            step[a] = 0
-            tnext[a] = np.inf
-            tdelta[a] = np.inf
+    c0, s0, n0, e0 = _axis_setup(ox, dx, t0, origin[0], h, dims[0])
+    c1, s1, n1, e1 = _axis_setup(oy, dy, t0, origin[1], h, dims[1])
+    c2, s2, n2, e2 = _axis_setup(oz, dz, t0, origin[2], h, dims[2])
     best = np.inf
     best_f = -1
     ncross = 0
     amb = False
     tcell0 = t0
     while True:
-        tcell1 = min(tnext[0], min(tnext[1], tnext[2]))
-        c = (cell[0] * dims[1] + cell[1]) * dims[2] + cell[2]
+        tcell1 = min(n0, min(n1, n2))
+        c = (c0 * dims[1] + c1) * dims[2] + c2
         for s in range(start[c], start[c + 1]):
             f = items[s]
             if skip_vertex >= 0 and (faces[f, 0] == skip_vertex or faces[f, 1] == skip_vertex
@@ -339,17 +323,37 @@ def _cast_one(o, d, vertices, faces, origin, h, dims, start, items, tmin, tmax, 
         if tcell1 >= t1:
             break
         # step to the next cell
-        a = 0
-        if tnext[1] < tnext[a]:
-            a = 1
-        if tnext[2] < tnext[a]:
-            a = 2
-        cell[a] += step[a]
-        if cell[a] < 0 or cell[a] >= dims[a]:
-            break
-        tcell0 = tnext[a]
-        tnext[a] += tdelta[a]
+        if n0 <= n1 and n0 <= n2:
+            c0 += s0
+            if c0 < 0 or c0 >= dims[0]:
+                break
+            tcell0 = n0
+            n0 += e0
+        elif n1 <= n2:
+            c1 += s1
+            if c1 < 0 or c1 >= dims[1]:
+                break
+            tcell0 = n1
+            n1 += e1
+        else:
+            c2 += s2
+            if c2 < 0 or c2 >= dims[2]:
+                break
+            tcell0 = n2
+            n2 += e2
     return best, best_f, ncross, amb
+
+
+@njit(cache=True, inline="always")
+def _axis_setup(o, d, t0, lo, h, n):
+    """Start cell, step, t of the next cell boundary and t per cell along one axis."""
+    c = int(np.floor((o + t0 * d - lo) / h))
+    c = min(max(c, 0), n - 1)
+    if d > 0:
+        return c, 1, (lo + (c + 1) * h - o) / d, h / d
+    if d < 0:
+        return c, -1, (lo + c * h - o) / d, -h / d
+    return c, 0, np.inf, np.inf
 
 
 @njit(cache=True, parallel=True)
@@ -363,8 +367,9 @@ def cast_rays(origins, dirs, vertices, faces, origin, h, dims, start, items, tmi
     amb = np.zeros(n, np.bool_)
     for i in prange(n):
         sv = skip_vertex[i] if skip_vertex.shape[0] > 0 else -1
-        t, f, nc, am = _cast_one(origins[i].copy(), dirs[i].copy(), vertices, faces, origin, h,
-                                 dims, start, items, tmin, tmax, sv, count_all, edge_tol)
+        t, f, nc, am = _cast_one(origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0],
+                                 dirs[i, 1], dirs[i, 2], vertices, faces, origin, h, dims, start,
+                                 items, tmin, tmax, sv, count_all, edge_tol)
         t_hit[i] = t
         f_hit[i] = f
         ncross[i] = nc

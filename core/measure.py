@@ -5,8 +5,8 @@ worst case, mean = typical), by its volume change and by its curvature; add tria
 and the topology guard. All functions take plain arrays (``vertices (N, 3)`` mm, ``faces (M, 3)``);
 :func:`compare` bundles everything for one shell.
 
-Distances are *exact* point-to-triangle distances (Ericson 2004) found through a uniform grid of
-triangles (numba, parallel), but measured from sample points: the vertices plus the face
+Distances are *exact* point-to-triangle distances (Ericson 2004) found through the uniform grid
+of triangles of :mod:`anatomesh.core.spatial` (numba, parallel), but measured from sample points: the vertices plus the face
 centroids of one surface to the triangles of the other, and the same the other way round. The
 symmetric Hausdorff distance is the max of both directions over these samples, so it can
 underestimate the true (continuous) Hausdorff distance by at most the distance a point moves
@@ -19,6 +19,7 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from . import _measure_kernels as _k
+from . import spatial as _spatial
 from .errors import AnatomeshError
 from .mesh import degenerate_faces, signed_volume, surface_area, topology
 from .neighbors import check_faces, structure as _structure
@@ -37,39 +38,22 @@ def _arrays(vertices, faces, what="mesh"):
 # ---------------------------------------------------------------------------------------------
 # distances
 # ---------------------------------------------------------------------------------------------
-class TriangleGrid:
-    """Uniform grid over the triangles of a surface, for exact nearest-triangle queries.
+class TriangleGrid(_spatial.TriangleGrid):
+    """:class:`anatomesh.core.spatial.TriangleGrid` (one grid for every distance query in
+    Anatomesh) with the measuring interface: exact nearest-triangle distances.
 
-    The cell edge defaults to the mean edge length (at least the largest extent over
-    4·cube-root(M), so the number of cells stays near the number of triangles); a query visits
-    cells nearest first and skips every cell farther than the best triangle found.
-    """
+    ``cell`` is the grid's cell edge in mm (default: the spatial grid's own choice)."""
 
     def __init__(self, vertices, faces, cell: Optional[float] = None):
-        self.v, self.f = _arrays(vertices, faces, "surface")
-        if self.f.shape[0] == 0:
+        v, f = _arrays(vertices, faces, "surface")
+        if f.shape[0] == 0:
             raise AnatomeshError("cannot measure distances to a surface without triangles")
-        used = self.v[np.unique(self.f)]
-        lo, hi = used.min(axis=0), used.max(axis=0)
-        if cell is None:
-            e = self.v[self.f[:, 1]] - self.v[self.f[:, 0]]
-            mean_edge = float(np.mean(np.linalg.norm(e, axis=1)))
-            extent = float(np.max(hi - lo))
-            cell = max(mean_edge, extent / (4.0 * max(1.0, self.f.shape[0] ** (1 / 3))), 1e-6)
-        self.cell = float(cell)
-        self.origin = lo - 0.5 * self.cell
-        self.dims = (np.floor((hi - self.origin) / self.cell).astype(np.int64) + 2)
-        keys, tris = _k.triangle_cells(self.v, self.f, self.origin, self.cell, self.dims)
-        order = np.argsort(keys, kind="stable")
-        self.keys, first = np.unique(keys[order], return_index=True)
-        self.starts = np.append(first, keys.size).astype(np.int64)
-        self.tris = tris[order]
+        super().__init__(v, f, cell_size=cell)
 
     def distance(self, points) -> np.ndarray:
         """Exact distance (mm) from each point (P, 3) to the nearest triangle, (P,) float64."""
         p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        return _k.points_to_triangles(p, self.v, self.f, self.origin, self.cell, self.dims,
-                                      self.keys, self.starts, self.tris)
+        return self.closest(p)[0]
 
 
 def sample_points(vertices, faces) -> np.ndarray:

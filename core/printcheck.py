@@ -30,7 +30,8 @@ import numpy as np
 from . import _printcheck_kernels as _pk
 from ._graph_kernels import union_find_roots
 from .errors import AnatomeshError
-from .mesh import Mesh, component_measures, degenerate_faces, face_areas, topology
+from .mesh import (Mesh, component_measures, degenerate_faces, edge_face_counts, face_areas,
+                   topology)
 from .progress import Progress, report, sub
 from .spatial import FEATURE_EDGE, TriangleGrid
 
@@ -128,6 +129,14 @@ def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     f = np.asarray(faces, np.int64)
     a = face_areas(vertices, f) / 3.0
     return np.bincount(f.ravel(), weights=np.repeat(a, 3), minlength=len(vertices))
+
+
+def closed_and_oriented(faces: np.ndarray, n_vertices: int) -> bool:
+    """Every edge has two faces using it once in each direction (closed and consistently
+    oriented; pinch vertices allowed) — the cheap part of :func:`anatomesh.core.mesh.topology`
+    that the ray directions need."""
+    _, count, balance = edge_face_counts(faces, n_vertices)
+    return bool(count.size and np.all(count == 2) and np.all(balance == 0))
 
 
 def _location(points: np.ndarray, weights: Optional[np.ndarray] = None) -> List[float]:
@@ -352,8 +361,7 @@ def face_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
     n = fn[idx] / ln[idx, None]
     t_min = 1e-7 * max(span, 1e-3)
     if oriented is None:
-        topo = topology(v, f)
-        oriented = topo.closed and topo.manifold and topo.oriented
+        oriented = closed_and_oriented(f, len(v))
     if oriented:
         dirs, ray, decided = _oriented_rays(g, v, f, idx, cen[idx], n, t_min, max_thickness)
     else:
@@ -527,6 +535,30 @@ def _one_way_gap(va, na, skip_a, grid_b, fb, wb_shared_with_a, seam_b, max_d, mi
     return float(d[k]), va[pts[k]], q[k]
 
 
+def _seam_index(parts, wids, nw):
+    """Per part: the welded vertex ids it shares with other parts (sorted), and its faces that
+    other parts have too (face indices, and one comparable key per such face)."""
+    k = len(parts)
+    seen = np.zeros(nw, np.int64)
+    uw = [np.unique(wids[i][f.ravel()]) if len(f) else np.zeros(0, np.int64)
+          for i, (_, f) in enumerate(parts)]
+    for u in uw:
+        seen[u] += 1
+    multi = seen > 1
+    seam_v = [u[multi[u]] for u in uw]
+    seam_f, seam_key = [], []
+    for i, (_, f) in enumerate(parts):
+        if not len(f):
+            seam_f.append(np.zeros(0, np.int64))
+            seam_key.append(_row_keys(np.zeros((0, 3), np.int64)))
+            continue
+        wf = wids[i][f]
+        cand = np.flatnonzero(np.all(multi[wf], axis=1))  # every corner shared: may be a seam face
+        seam_f.append(cand)
+        seam_key.append(_row_keys(np.sort(wf[cand], axis=1)))
+    return seam_v, seam_f, seam_key
+
+
 def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_gap: float = 0.0,
               grids: Optional[List[TriangleGrid]] = None, min_cos: float = 0.3,
               progress: Optional[Progress] = None) -> List[Dict]:
@@ -541,7 +573,9 @@ def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_g
     both surfaces' normals), so points running along a surface into a seam are not gaps.
 
     Returns ``[{"a", "b", "ia", "ib", "touching", "seam_area_mm2", "min_gap_mm", "clearance_mm",
-    "location", "fuses"}]`` with ``fuses`` when the clearance is below ``min_gap``.
+    "location", "fuses"}]`` with ``fuses`` when parts that do not touch are closer than
+    ``min_gap`` (touching parts print joined by their seam whatever their clearance; to print
+    them apart, :func:`anatomesh.core.printfix.separate_parts` opens the seams).
     """
     parts = [_check_mesh(m.vertices, m.faces) for m in meshes]
     names = [m.name or str(i) for i, m in enumerate(meshes)]
@@ -558,9 +592,9 @@ def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_g
     offs = np.cumsum([0] + [len(v) for v, _ in parts])
     wids = [wid[offs[i]:offs[i + 1]] for i in range(k)]
     normals = [vertex_normals(v, f) if len(f) else np.zeros_like(v) for v, f in parts]
-    fkeys = [np.sort(wids[i][parts[i][1]], axis=1) if len(parts[i][1]) else np.zeros((0, 3), np.int64)
-             for i in range(k)]
     nw = int(wid.max()) + 1 if wid.size else 1
+    seam_v, seam_f, seam_fkey = _seam_index(parts, wids, nw)
+    flag = np.zeros(nw, bool)  # scratch: the welded ids a pair shares
     out = []
     cand = []
     for i in range(k):
@@ -572,34 +606,32 @@ def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_g
                 cand.append((i, j))
     for c, (i, j) in enumerate(cand):
         report(progress, c / max(len(cand), 1), f"gaps {names[i]}–{names[j]}")
-        used_i = np.zeros(nw, bool)
-        used_i[wids[i][np.unique(parts[i][1].ravel())]] = True
-        used_j = np.zeros(nw, bool)
-        used_j[wids[j][np.unique(parts[j][1].ravel())]] = True
-        shared = used_i & used_j
-        touching = bool(np.any(shared))
+        shared_ids = np.intersect1d(seam_v[i], seam_v[j], assume_unique=True)
+        touching = bool(shared_ids.size)
         seam_area = 0.0
         seam_i = seam_j = None
         seam_loc = None
+        flag[shared_ids] = True
         if touching:
-            ki, kj = _row_keys(fkeys[i]), _row_keys(fkeys[j])
-            seam_i = np.isin(ki, kj)
-            seam_j = np.isin(kj, ki)
+            seam_i = np.zeros(len(parts[i][1]), bool)
+            seam_j = np.zeros(len(parts[j][1]), bool)
+            seam_i[seam_f[i][np.isin(seam_fkey[i], seam_fkey[j])]] = True
+            seam_j[seam_f[j][np.isin(seam_fkey[j], seam_fkey[i])]] = True
             vi, fi = parts[i]
             if np.any(seam_i):
                 seam_area = float(face_areas(vi, fi[seam_i]).sum())
                 seam_loc = _location(vi[fi[seam_i]].reshape(-1, 3))
             else:
-                seam_loc = _location(vi[shared[wids[i]]])
+                seam_loc = _location(vi[flag[wids[i]]])
         best = (np.inf, None, None)
         for a, b, seam_b in ((i, j, seam_j), (j, i, seam_i)):
             va, fa_ = parts[a]
             fb = parts[b][1]
-            skip_a = shared[wids[a]]
-            r = _one_way_gap(va, normals[a], skip_a, grids[b], fb, shared[wids[b]],
+            r = _one_way_gap(va, normals[a], flag[wids[a]], grids[b], fb, flag[wids[b]],
                              seam_b, max_distance, min_cos)
             if r[0] < best[0]:
                 best = r
+        flag[shared_ids] = False
         if not touching and not np.isfinite(best[0]):
             continue
         clearance = best[0] if np.isfinite(best[0]) else None
@@ -612,7 +644,9 @@ def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_g
                  "min_gap_mm": 0.0 if touching else float(best[0]),
                  "clearance_mm": None if clearance is None else float(clearance),
                  "location": loc,
-                 "fuses": clearance is not None and clearance < min_gap}
+                 # parts sharing a seam print joined anyway (separate them with
+                 # printfix.separate_parts): only a gap between parts apart fuses them
+                 "fuses": (not touching) and clearance is not None and clearance < min_gap}
         if clearance is not None and touching:
             entry["clearance_location"] = _location(0.5 * (best[1] + best[2]))
         out.append(entry)
@@ -748,3 +782,156 @@ def remove_tiny_shells(mesh: Mesh, min_volume_mm3: float) -> Mesh:
     meta["removed_shells"] = [round(s["volume_mm3"], 6) for s in shells]
     return Mesh(nv, nf, nn, name=mesh.name, value=mesh.value, color=mesh.color, space=mesh.space,
                 meta=meta)
+
+
+# ---------------------------------------------------------------------------------------------
+# files → meshes → report
+# ---------------------------------------------------------------------------------------------
+def _report_meshes(folder, progress: Optional[Progress] = None) -> List[Mesh]:
+    """The surfaces listed in ``folder/report.json`` (written by ``anatomesh mesh``), named as
+    there; per surface the first of STL, PLY, OBJ, 3MF that was written."""
+    import json
+    from pathlib import Path
+
+    from .io.mesh_files import read_mesh
+
+    folder = Path(folder)
+    rp = folder / "report.json"
+    try:
+        rep = json.loads(rp.read_text())
+        surfaces = rep["surfaces"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise AnatomeshError(f"cannot read the mesh report ({exc}); re-run `anatomesh mesh` or "
+                             f"give the mesh files themselves", rp) from None
+    out = []
+    for k, s in enumerate(surfaces):
+        files = s.get("files") or {}
+        fmt = next((x for x in ("stl", "ply", "obj", "3mf") if x in files), None)
+        if fmt is None:
+            raise AnatomeshError(f"surface {s.get('name')!r} lists no STL/PLY/OBJ/3MF file; re-run "
+                                 f"`anatomesh mesh` with --format stl", rp)
+        path = Path(files[fmt])
+        path = path if path.is_absolute() else folder / path
+        report(progress, k / max(len(surfaces), 1), f"reading {path.name}")
+        m = read_mesh(path) if fmt != "3mf" else _one_mesh(_read_3mf(path), path.stem)
+        m.name = str(s.get("name") or m.name)
+        m.value = s.get("value")
+        if s.get("color"):
+            m.color = tuple(s["color"][:3])
+        m.space = str(rep.get("space", m.space))
+        out.append(m)
+    return out
+
+
+def _read_3mf(path) -> List[Mesh]:
+    try:
+        from .export_3mf import read_3mf
+    except ImportError:
+        raise AnatomeshError("3MF reading is not available in this version; export STL and check "
+                             "that", path) from None
+    return list(read_3mf(path))
+
+
+def _one_mesh(meshes: List[Mesh], name: str) -> Mesh:
+    """The objects of one surface's file as one Mesh (they are usually just one)."""
+    if len(meshes) == 1:
+        return meshes[0]
+    offs = np.cumsum([0] + [m.n_vertices for m in meshes])
+    return Mesh(np.concatenate([m.vertices for m in meshes]),
+                np.concatenate([m.faces + o for m, o in zip(meshes, offs[:-1])]), name=name,
+                color=meshes[0].color if meshes else (0.8, 0.8, 0.8),
+                space=meshes[0].space if meshes else "RAS")
+
+
+def read_parts(paths, progress: Optional[Progress] = None) -> List[Mesh]:
+    """Meshes to check from files and folders: STL/PLY/OBJ files (one part each), 3MF files
+    (one part per object, via :func:`anatomesh.core.export_3mf.read_3mf`), folders written by
+    ``anatomesh mesh`` (their ``report.json`` names the files), or other folders (every mesh file
+    in them, sorted). Raises :class:`AnatomeshError` for a missing path or an unreadable file."""
+    from pathlib import Path
+
+    from .io.mesh_files import MESH_SUFFIXES, read_mesh
+
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    meshes: List[Mesh] = []
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise AnatomeshError("no mesh files given: pass STL/PLY/OBJ/3MF files or a folder")
+    for k, p in enumerate(paths):
+        sp = sub(progress, k / len(paths), (k + 1) / len(paths))
+        if p.is_dir():
+            if (p / "report.json").is_file():
+                meshes += _report_meshes(p, sp)
+                continue
+            files = sorted(x for x in p.iterdir()
+                           if x.suffix.lower() in MESH_SUFFIXES + (".3mf",) and x.is_file())
+            if not files:
+                raise AnatomeshError("this folder has no report.json and no STL/PLY/OBJ/3MF files; "
+                                     "give mesh files or a folder written by `anatomesh mesh`", p)
+            meshes += read_parts(files, sp)
+        elif not p.exists():
+            raise AnatomeshError("no such file or folder: check the path", p)
+        elif p.suffix.lower() == ".3mf":
+            meshes += _read_3mf(p)
+        else:
+            report(sp, 0.0, f"reading {p.name}")
+            meshes.append(read_mesh(p))
+    names = [m.name for m in meshes]
+    for i, m in enumerate(meshes):  # keep names unique: they key the report
+        if not m.name or names.count(m.name) > 1:
+            m.name = f"{m.name or 'part'}#{i + 1}"
+    return meshes
+
+
+def check_files(paths, profile="fdm", min_wall: Optional[float] = None,
+                min_gap: Optional[float] = None, progress: Optional[Progress] = None) -> Dict:
+    """:func:`check_parts` on the meshes of ``paths`` (see :func:`read_parts`); the report also
+    lists the ``files`` read."""
+    meshes = read_parts(paths, sub(progress, 0.0, 0.1))
+    rep = check_parts(meshes, profile, min_wall, min_gap, progress=sub(progress, 0.1, 1.0))
+    rep["files"] = [str(p) for p in ([paths] if isinstance(paths, str) else paths)]
+    return rep
+
+
+def summary_lines(rep: Dict) -> List[str]:
+    """A short human summary of a :func:`check_parts` report, one problem per line."""
+    prof = rep["profile"]
+    lines = [f"profile {prof['name']}: min wall {prof['min_wall']} mm, min gap {prof['min_gap']} mm"]
+    for p in rep["parts"]:
+        problems = []
+        if not p["closed"]:
+            problems.append("not closed")
+        if not p["manifold"]:
+            problems.append("not manifold")
+        if not p.get("oriented", True):
+            problems.append("inconsistent normals")
+        if p["self_intersections"]:
+            problems.append(f"{p['self_intersections']} self-intersecting faces")
+        if p.get("degenerate_faces"):
+            problems.append(f"{p['degenerate_faces']} degenerate faces")
+        if p.get("tiny_shells"):
+            problems.append(f"{len(p['tiny_shells'])} tiny shells")
+        if p.get("thin_regions"):
+            r = p["thin_regions"][0]
+            problems.append(f"thin: {p['thin_area_mm2']:.1f} mm² below {prof['min_wall']} mm "
+                            f"(thinnest {r['min_mm']} mm at {r['min_location']})")
+        if p.get("part_intersections"):
+            problems.append(f"crosses {p['part_intersections']} other part(s)")
+        wall = "?" if p["min_wall_mm"] is None else f"{p['min_wall_mm']:.2f}"
+        state = "ok  " if p["passed"] else "FAIL"
+        lines.append(f"{state} {p['name']} (min wall {wall} mm)" +
+                     (": " + "; ".join(problems) if problems else ""))
+    for g in rep["gaps"]:
+        if g.get("intersecting"):
+            lines.append(f"FAIL {g['a']} and {g['b']} intersect at {g['location']}")
+        elif g["fuses"]:
+            lines.append(f"FAIL {g['a']} – {g['b']}: {g['clearance_mm']} mm apart at "
+                         f"{g.get('clearance_location', g['location'])} (< {prof['min_gap']} mm: fuses)")
+    n_touch = sum(bool(g["touching"]) for g in rep["gaps"])
+    n_close = len(rep["gaps"]) - n_touch
+    n_ok = sum(p["passed"] for p in rep["parts"])
+    lines.append(f"{'PASSED' if rep['passed'] else 'FAILED'}: {n_ok}/{len(rep['parts'])} parts pass; "
+                 f"{n_touch} touching pairs (shared seams), {n_close} other pairs closer than "
+                 f"{GAP_REPORT_MM:g} mm")
+    return lines

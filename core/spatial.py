@@ -3,8 +3,9 @@
 Any stage that measures distances to a surface (print checks, smoothing and decimation error in
 mm) can build one :class:`TriangleGrid` and query it many times. Triangles are binned by their
 bounding boxes into cubic cells of side ``cell_size`` mm (default twice the mean edge length,
-enlarged so that there are at most ~8 cells per triangle). Numba kernels; rays are cast in
-parallel.
+enlarged so that there are at most ~8 cells per triangle). Numba kernels, queries in parallel,
+no allocation per query. :class:`anatomesh.core.measure.TriangleGrid` is this grid with a
+``distance`` method: one grid for every distance query in Anatomesh.
 
 * :meth:`TriangleGrid.closest` — nearest surface point of each query point (Ericson 2004,
   "Real-Time Collision Detection", §5.1.5), searched ring by ring of cells with a distance bound.

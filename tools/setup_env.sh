@@ -12,6 +12,15 @@ if [ -z "$PY" ]; then
     fi
   done
 fi
+# independent printer toolchain for tests/test_slicers.py (Debian packages; skipped when not root)
+if ! command -v admesh >/dev/null 2>&1 || ! command -v prusa-slicer >/dev/null 2>&1; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends admesh prusa-slicer \
+      || echo "warning: could not install admesh/prusa-slicer; tests/test_slicers.py will skip" >&2
+  else
+    echo "note: admesh/prusa-slicer missing (install as root: apt-get install admesh prusa-slicer); tests/test_slicers.py will skip" >&2
+  fi
+fi
 if [ -z "$PY" ]; then
   echo "error: Python 3.11 is needed (bpy 5.0.1 is built for it): sudo apt-get install python3.11 python3.11-venv" >&2
   exit 2
