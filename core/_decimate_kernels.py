@@ -11,8 +11,11 @@ Data layout (arrays only, no half-edges):
 * vertex → faces with lazy deletion: the faces of vertex ``v`` are
   ``refs[vstart[v]:vstart[v] + vcount[v]]`` (some may be dead); a collapse appends the survivor's
   new list at the end of ``refs`` (Forstmann-style), compacted when full;
-* ``err`` (M, 3) float64: the collapse cost of each face's 3 edges, refreshed around every
-  merged vertex; sweeps over the faces collapse the edges under a rising threshold.
+* ``FD`` (M, 8) float64, one 64-byte row per face (one cache line: the collapse loop touches
+  a face's costs, normal and quality together): columns 0-2 the collapse cost of the face's 3
+  edges (a refused, *parked* edge stores ``-1 - cost`` until a collapse next to it), 3-5 the
+  unit normal, 6 the quality; costs are refreshed around every merged vertex and sweeps over the
+  faces collapse the edges under a rising threshold.
 
 ``vclass``: 0 free, 1 feature (junction of 3+ labels, or open boundary: moves only along its
 curve), 2 locked (never moves, no edge touching it collapses).
@@ -23,6 +26,9 @@ import numpy as np
 from numba import njit, prange
 
 MAXF = 96          # faces around an edge's two endpoints; larger stars are not collapsed
+#: fast-math flags for the geometry of the collapse loop: reassociation, FMA contraction and
+#: reciprocals, but inf/NaN kept IEEE (costs use INF); results stay deterministic
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 INF = np.inf
 
 # kernel exit codes
@@ -96,14 +102,14 @@ def build_quadrics(V, F, cons_a, cons_b, cons_f):
     return Q
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def _qeval(q, x, y, z):
     return (q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x
             + q[4] * y * y + 2 * q[5] * y * z + 2 * q[6] * y
             + q[7] * z * z + 2 * q[8] * z + q[9])
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def _plan(V, Q, vclass, a, b, q):
     """Where to put the merged vertex of edge (a, b) and what it costs.
 
@@ -529,14 +535,14 @@ def _link_ok(F, flab, fa, na, fb, nb, a, b, lab, mark, token):
     return sa + sb - 2 * nab >= 3
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def _corner(V, v, keep, drop, px, py, pz, use_p):
     if use_p and (v == keep or v == drop):
         return px, py, pz
     return V[v, 0], V[v, 1], V[v, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FAST)
 def _tri_normal(V, F, f, keep, drop, px, py, pz, use_p):
     """Unnormalised normal of face f and its summed squared edge lengths, with ``keep`` and
     ``drop`` moved to p when ``use_p``."""
@@ -551,35 +557,36 @@ def _tri_normal(V, F, f, keep, drop, px, py, pz, use_p):
     return nx, ny, nz, l2
 
 
-@njit(cache=True)
-def _face_frame(V, F, f, fn, fq):
-    """Store the unit normal and quality 2√3|n|/Σl² of face f (zeros when degenerate)."""
+@njit(cache=True, fastmath=FAST)
+def _face_frame(V, F, f, FD):
+    """Store the unit normal (FD[f, 3:6]) and quality 2√3|n|/Σl² (FD[f, 6]) of face f (zeros
+    when degenerate)."""
     nx, ny, nz, l2 = _tri_normal(V, F, f, -1, -1, 0.0, 0.0, 0.0, False)
     a = np.sqrt(nx * nx + ny * ny + nz * nz)
     if a > 0.0 and l2 > 0.0:
-        fn[f, 0], fn[f, 1], fn[f, 2] = nx / a, ny / a, nz / a
-        fq[f] = 3.4641016151377544 * a / l2
+        FD[f, 3], FD[f, 4], FD[f, 5] = nx / a, ny / a, nz / a
+        FD[f, 6] = 3.4641016151377544 * a / l2
     else:
-        fn[f, 0], fn[f, 1], fn[f, 2] = 0.0, 0.0, 0.0
-        fq[f] = 0.0
+        FD[f, 3], FD[f, 4], FD[f, 5] = 0.0, 0.0, 0.0
+        FD[f, 6] = 0.0
 
 
 @njit(parallel=True, cache=True)
 def face_frames(V, F):
-    """Unit normals (M, 3) and qualities (M,) of all faces (see :func:`_face_frame`)."""
+    """The face rows FD (M, 8): unit normals and qualities of all faces (see
+    :func:`_face_frame`), edge costs zero (filled by :func:`edge_costs`)."""
     m = F.shape[0]
-    fn = np.empty((m, 3))
-    fq = np.empty(m)
+    FD = np.zeros((m, 8))
     for f in prange(m):
-        _face_frame(V, F, f, fn, fq)
-    return fn, fq
+        _face_frame(V, F, f, FD)
+    return FD
 
 
-@njit(cache=True)
-def _geometry_ok(V, F, fn, fq, fl, nf, keep, drop, px, py, pz, cos_max, q_min):
+@njit(cache=True, fastmath=FAST)
+def _geometry_ok(V, F, FD, fl, nf, keep, drop, px, py, pz, cos_max, q_min):
     """No face flips by more than acos(cos_max), none becomes degenerate, none becomes a sliver
     with quality 2√3|n|/Σl² (1 = equilateral) below min(q_min, its quality before).
-    ``fn``/``fq``: the faces' current unit normals and qualities."""
+    ``FD[:, 3:7]``: the faces' current unit normals and qualities."""
     for i in range(nf):
         f = fl[i]
         if _has(f, F, keep) and _has(f, F, drop):
@@ -588,10 +595,11 @@ def _geometry_ok(V, F, fn, fq, fl, nf, keep, drop, px, py, pz, cos_max, q_min):
         a1 = np.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
         if a1 <= 1e-12 * l1 or l1 <= 0.0:
             return False
-        if fn[f, 0] * n1x + fn[f, 1] * n1y + fn[f, 2] * n1z < cos_max * a1 and fq[f] > 0.0:
+        q0 = FD[f, 6]
+        if FD[f, 3] * n1x + FD[f, 4] * n1y + FD[f, 5] * n1z < cos_max * a1 and q0 > 0.0:
             return False
         q1 = 3.4641016151377544 * a1 / l1
-        if q1 < q_min and q1 < fq[f]:
+        if q1 < q_min and q1 < q0:
             return False
     return True
 
@@ -623,38 +631,53 @@ def _is_feature_edge(F, flab, fb, nb, a, multi):
 # ---------------------------------------------------------------------------------------------
 # edge costs and the collapse passes
 # ---------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _twin_entry(vclass, u, w, multi):
+    """True for the entry (u, w), u > w, of an edge whose twin (w, u) is stored in the other
+    face: in a single surface every edge at a free vertex (one closed, consistently oriented
+    fan) has exactly one such twin. These entries hold INF, so each edge is tried once."""
+    return not multi and u > w and (vclass[u] == 0 or vclass[w] == 0)
+
+
 @njit(parallel=True, cache=True)
-def edge_costs(V, Q, F, vclass, err):
-    """err[f, k] = collapse cost of edge (F[f, k], F[f, k+1]) (each interior edge in 2 faces)."""
+def edge_costs(V, Q, F, vclass, FD, multi):
+    """FD[f, k] = collapse cost of edge (F[f, k], F[f, k+1]); each interior edge of a single
+    surface is stored once (see :func:`_twin_entry`), junction/boundary/multi-label edges in
+    every face that has them."""
     m = F.shape[0]
     chunk = 4096
     for c in prange((m + chunk - 1) // chunk):
         q = np.empty(10)
         for f in range(c * chunk, min(m, (c + 1) * chunk)):
             for k in range(3):
-                err[f, k] = _plan(V, Q, vclass, F[f, k], F[f, (k + 1) % 3], q)[0]
+                u, w = F[f, k], F[f, (k + 1) % 3]
+                if _twin_entry(vclass, u, w, multi):
+                    FD[f, k] = INF
+                else:
+                    FD[f, k] = _plan(V, Q, vclass, u, w, q)[0]
 
 
 @njit(cache=True)
-def sample_costs(err, falive, park, step):
+def sample_costs(FD, falive, step):
     """Every ``step``-th finite, unparked edge cost of the live faces (to pick a threshold)."""
-    m = err.shape[0]
+    m = FD.shape[0]
     out = np.empty(3 * (m // max(step, 1) + 1))
     n = 0
     for f in range(0, m, step):
         if falive[f]:
             for k in range(3):
-                if err[f, k] < INF and not park[f, k]:
-                    out[n] = err[f, k]
+                e = FD[f, k]
+                if 0.0 <= e < INF:
+                    out[n] = e
                     n += 1
     return out[:n]
 
 
-@njit(cache=True)
-def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount, nref, err, vstamp,
+@njit(cache=True, fastmath=FAST)
+def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount, nref, FD, vstamp,
                   stamp, tau, start, nalive, final_faces, lab_count, lab_target, lab_maxcost,
-                  lab_listed, budgets, multi, cos_max, q_min, log_a, log_b, nlog, stats, park, mark, fn,
-                  fq):
+                  lab_listed, budgets, multi, cos_max, q_min, log_a, log_b, log_p, fdeath, log_stop,
+                  nlog, stats, mark):
     """One sweep over the faces ``live[start:]`` collapsing every allowed edge with cost <= tau.
 
     A vertex that received a collapse is stamped and not touched again in this sweep, so one
@@ -667,11 +690,17 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
     quadric bound, ``lab_listed`` whether the label's budget applies (an edge collapses only if a
     label around it is listed and none is exhausted). Returns ``(code, nalive, nref, next_face,
     collapsed, nlog)``: code DONE (``final_faces`` reached), STEP (sweep finished) or REFS_FULL
-    (resume at live[next_face] after compacting). ``park`` (M, 3) bool marks refused edges;
-    ``mark`` is scratch for the link test; ``fn``/``fq`` the faces' unit normals and qualities.
-    Each collapse (keep, drop) is logged in ``log_a``/``log_b`` while room lasts (a collapse
-    sequence for levels of detail; not exposed yet); ``stats`` = [largest quadric cost accepted,
-    candidates checked].
+    (resume at live[next_face] after compacting). ``FD`` holds the edge costs (negative:
+    parked, refused until a collapse next to it), unit normals and qualities of the faces;
+    ``mark`` is scratch for the link test.
+    Collapse log (levels of detail, :mod:`anatomesh.core.lod`): while room lasts, collapse ``i``
+    (``i = nlog``) is recorded as ``log_a[i] = keep``, ``log_b[i] = drop``, ``log_p[i]`` = the
+    merged vertex's new position, and every face it removes gets ``fdeath[face] = i`` (pass
+    zero-length arrays to record nothing). With ``log_stop`` the pass returns DONE once the log is
+    full (the state after exactly ``len(log_a)`` collapses). ``stats`` (9,) float64 = [largest
+    quadric cost accepted, candidates checked, then refusals: forbidden (locked), star too large,
+    label budget, not a junction edge, link condition, all refusals at the link/geometry stage,
+    and last the collapses saved by an endpoint placement].
     """
     fa = np.empty(MAXF, np.int32)
     fb = np.empty(MAXF, np.int32)
@@ -685,25 +714,30 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
     collapsed = 0
     for i0 in range(start, m):
         f0 = live[i0]
+        if not falive[f0]:
+            continue
         for k0 in range(3):
-            if park[f0, k0] or not falive[f0] or err[f0, k0] > tau:
+            e0 = FD[f0, k0]
+            if e0 < 0.0 or e0 > tau or not falive[f0]:
                 continue
             a, b = F[f0, k0], F[f0, (k0 + 1) % 3]
             if vstamp[a] == stamp or vstamp[b] == stamp:
                 continue
-            if nalive <= final_faces:
+            if nalive <= final_faces or (log_stop and nlog >= log_a.shape[0]):
                 return DONE, nalive, nref, i0, collapsed, nlog
             if nref + 2 * MAXF > cap_r:
                 return REFS_FULL, nalive, nref, i0, collapsed, nlog
             stats[1] += 1
             cost, keep, drop, px, py, pz = _plan(V, Q, vclass, a, b, q)
             if cost == INF:
-                park[f0, k0] = True
+                stats[2] += 1
+                FD[f0, k0] = -1.0 - e0
                 continue
             na = _gather(refs, vstart, vcount, falive, keep, fa)
             nb = _gather(refs, vstart, vcount, falive, drop, fb)
             if na < 0 or nb < 0 or na + nb > MAXF:
-                park[f0, k0] = True
+                stats[3] += 1
+                FD[f0, k0] = -1.0 - e0
                 continue
             # per-label budgets: every label on the faces around the edge must still allow it
             nl = 0
@@ -720,37 +754,69 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
                     blocked = True
                     break
             if blocked or not listed:
-                park[f0, k0] = True
+                stats[4] += 1
+                FD[f0, k0] = -1.0 - e0
                 continue
             if vclass[keep] == 1 and vclass[drop] == 1:
                 if not _is_feature_edge(F, flab, fb, nb, keep, multi):
-                    park[f0, k0] = True
+                    stats[5] += 1
+                    FD[f0, k0] = -1.0 - e0
                     continue
-            ok = _geometry_ok(V, F, fn, fq, fa, na, keep, drop, px, py, pz, cos_max, q_min) \
-                and _geometry_ok(V, F, fn, fq, fb, nb, keep, drop, px, py, pz, cos_max, q_min)
-            if ok and (not multi or (vclass[keep] == 0 and vclass[drop] == 0)):
+            # topology first (O(degree) with marks), then geometry (normals and qualities)
+            ok = True
+            if not multi or (vclass[keep] == 0 and vclass[drop] == 0):
                 token += 3
                 ok = _link_ok(F, flab, fa, na, fb, nb, keep, drop, -1, mark, token)
-            elif ok:
+            else:
                 for j in range(nl):
                     token += 3
                     if not _link_ok(F, flab, fa, na, fb, nb, keep, drop, labs[j], mark, token):
                         ok = False
                         break
             if not ok:
+                stats[6] += 1
+            else:
+                ok = _geometry_ok(V, F, FD, fa, na, keep, drop, px, py, pz, cos_max, q_min) \
+                    and _geometry_ok(V, F, FD, fb, nb, keep, drop, px, py, pz, cos_max, q_min)
+                if not ok and vclass[keep] == 0 and vclass[drop] == 0:
+                    # the optimal point flips or slivers a face: try the two endpoints (subset
+                    # placement, Garland & Heckbert 1997) while they cost no more than allowed
+                    for alt in range(2):
+                        w = keep if alt == 0 else drop
+                        x, y, z = V[w, 0], V[w, 1], V[w, 2]
+                        c2 = max(_qeval(q, x, y, z), 0.0)
+                        if c2 > tau:
+                            continue
+                        within = True
+                        for j in range(nl):
+                            if c2 > lab_maxcost[labs[j]]:
+                                within = False
+                        if within and _geometry_ok(V, F, FD, fa, na, keep, drop, x, y, z, cos_max,
+                                                   q_min) \
+                                and _geometry_ok(V, F, FD, fb, nb, keep, drop, x, y, z, cos_max,
+                                                 q_min):
+                            ok = True
+                            cost, px, py, pz = c2, x, y, z
+                            stats[8] += 1
+                            break
+            if not ok:
+                stats[7] += 1
                 # refused: parked until a collapse next to it un-parks it
-                park[f0, k0] = True
+                FD[f0, k0] = -1.0 - e0
                 continue
             # --- collapse drop -> keep
             stats[0] = max(stats[0], cost)
             V[keep, 0], V[keep, 1], V[keep, 2] = px, py, pz
             for i in range(10):
                 Q[keep, i] += Q[drop, i]
+            record = nlog < log_a.shape[0]
             for i in range(nb):
                 f = fb[i]
                 if _has(f, F, keep):
                     falive[f] = False
                     nalive -= 1
+                    if record and fdeath.shape[0] > 0:
+                        fdeath[f] = nlog
                     lab_count[flab[f, 0]] -= 1
                     lab_count[flab[f, 1]] -= 1
                 else:
@@ -771,21 +837,24 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
             ver[drop] = -1
             vstamp[keep] = stamp
             collapsed += 1
-            if nlog < log_a.shape[0]:
+            if record:
                 log_a[nlog] = keep
                 log_b[nlog] = drop
+                if log_p.shape[0] > 0:
+                    log_p[nlog, 0], log_p[nlog, 1], log_p[nlog, 2] = px, py, pz
                 nlog += 1
             # refresh the costs of the edges at the merged vertex (each distinct edge once)
             nn = 0
             for i in range(first, nref):
                 g = refs[i]
-                _face_frame(V, F, g, fn, fq)
+                _face_frame(V, F, g, FD)
                 for k in range(3):
                     u, w = F[g, k], F[g, (k + 1) % 3]
                     if u != keep and w != keep:
                         # the edge opposite the merged vertex: its cost is unchanged, but a
                         # refusal may no longer hold; un-park it
-                        park[g, k] = False
+                        if FD[g, k] < 0.0:
+                            FD[g, k] = -1.0 - FD[g, k]
                         continue
                     o = w if u == keep else u
                     found = False
@@ -800,6 +869,48 @@ def collapse_pass(live, V, Q, F, falive, flab, vclass, ver, refs, vstart, vcount
                         buf_a[nn] = o
                         costs[nn] = c
                         nn += 1
-                    err[g, k] = c
-                    park[g, k] = False
+                    FD[g, k] = INF if _twin_entry(vclass, u, w, multi) else c
     return STEP, nalive, nref, m, collapsed, nlog
+
+
+# ---------------------------------------------------------------------------------------------
+# levels of detail: replaying a prefix of the collapse log
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def replay_collapses(keep, drop, where, count, V):
+    """The vertex map and positions after the first ``count`` logged collapses.
+
+    ``keep``/``drop`` (C,) int32 and ``where`` (C, 3) float64: collapse ``i`` merged ``drop``
+    into ``keep`` and moved ``keep`` to ``where[i]``. ``V`` (N, 3) float64 positions before any
+    collapse. Returns ``rep`` (N,) int64 — the vertex each input vertex has become (itself when
+    it survives) — and the positions (N, 3) float64 (exactly the values the collapse run stored).
+    """
+    n = V.shape[0]
+    rep = np.arange(n)
+    P = V.copy()
+    for i in range(count):
+        k = keep[i]
+        P[k, 0], P[k, 1], P[k, 2] = where[i, 0], where[i, 1], where[i, 2]
+    # backwards: when drop[i] merged into keep[i], keep[i] was alive; its own fate is decided by
+    # later collapses, already resolved
+    for i in range(count - 1, -1, -1):
+        rep[drop[i]] = rep[keep[i]]
+    return rep, P
+
+
+@njit(cache=True)
+def bounds(V):
+    """Bounding box of (N, 3) positions in one pass: (lo (3,), hi (3,), all finite)."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    finite = True
+    for i in range(V.shape[0]):
+        for j in range(3):
+            x = V[i, j]
+            if not np.isfinite(x):
+                finite = False
+            if x < lo[j]:
+                lo[j] = x
+            if x > hi[j]:
+                hi[j] = x
+    return lo, hi, finite

@@ -22,7 +22,13 @@ A collapse is refused when it would
   faces, keep the curves in place (the classic boundary quadrics);
 * flip a face normal by more than ``max_normal_angle``, create a degenerate face, or a sliver
   whose quality ``2√3·|n| / Σl²`` (1 = equilateral) is below ``min_quality`` and below its
-  quality before.
+  quality before. When the optimal point fails only these geometric tests, the two endpoints
+  are tried (subset placement) at their own, higher cost, if the sweep's threshold allows it:
+  fewer refused edges, so fewer retries and a cheaper collapse order.
+
+Each interior edge of a single surface is stored and tried once (in the face where it runs
+from the lower to the higher vertex index), and a face's 3 edge costs, unit normal and quality
+share one 64-byte row: the collapse loop touches one cache line per face.
 
 Interface faces are stored once (a :class:`~anatomesh.core.surfaceset.SurfaceSet`), so every
 interface is decimated once for both labels and seams stay bit-identical. Vertices where a
@@ -112,34 +118,20 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
         hausdorff_mm, mean_mm, volume_change_pct}} (label ``None`` for a plain mesh).
     """
     t0 = time.perf_counter()
-    v, f, fl, lock = _check_inputs(vertices, faces, face_labels, locked)
-    kind, value = _check_target(ratio, target_faces, max_error, fl is not None)
-    if not 0.0 < max_normal_angle <= 180.0:
-        raise AnatomeshError(f"max_normal_angle must be in (0, 180] degrees, got {max_normal_angle}")
-    if not 0.0 <= min_quality < 1.0:
-        raise AnatomeshError(f"min_quality must be in [0, 1), got {min_quality}")
-    multi = fl is not None
-    if multi:
-        values, dense = np.unique(fl, return_inverse=True)
-        dense = dense.reshape(-1, 2).astype(np.int32)
-    else:
-        values = np.array([0, 1])
-        dense = np.zeros((len(f), 2), np.int32)
-        dense[:, 1] = 1
-    counts = np.bincount(dense.ravel(), minlength=len(values)).astype(np.int64)
-    centre = 0.5 * (v.min(axis=0) + v.max(axis=0)) if len(v) else np.zeros(3)
-    v64 = v - centre
+    p = _prepare(vertices, faces, face_labels, locked, max_normal_angle, min_quality)
+    v, f, fl, multi, values, centre = p.v, p.f, p.fl, p.multi, p.values, p.centre
+    kind, value = _check_target(ratio, target_faces, max_error, multi)
 
     factors = _ERROR_FACTORS if kind == "max_error" else (None,)
     for attempt, factor in enumerate(factors):
-        budget = _budget(kind, value, values, counts, len(f), multi, factor)
-        nv, nf, keep_f, keep_v, stats = _collapse(v64, f, dense, multi, lock, budget, len(values),
-                                                  np.cos(np.radians(max_normal_angle)), min_quality,
-                                                  progress, attempt)
+        budget = _budget(kind, value, values, p.counts, len(f), multi, factor)
+        nv, nf, keep_f, keep_v, stats = _collapse(p.v64, f, p.dense, multi, p.lock, budget,
+                                                  len(values), p.cos_max, min_quality, progress,
+                                                  attempt)
         out_v = (nv + centre).astype(np.float32)
         out_fl = fl[keep_f] if multi else None
         info = {"faces_before": int(len(f)), "faces_after": int(len(nf)),
-                "vertices_before": int(np.count_nonzero(np.bincount(f.ravel(), minlength=len(v)))),
+                "vertices_before": stats["vertices_before"],
                 "vertices_after": int(len(out_v)), "collapses": int(stats["collapses"]),
                 "candidates_checked": stats["candidates"],
                 "quadric_error_mm": float(np.sqrt(stats["max_cost"])),
@@ -203,38 +195,58 @@ def decimate_surfaces(surfaces, *, ratio: Target = None, target_faces: Target = 
         if not hasattr(surfaces, name):
             raise AnatomeshError(f"decimate_surfaces needs a SurfaceSet (with {name}), got "
                                  f"{type(surfaces).__name__}: use decimate_mesh for one Mesh")
-    n = len(surfaces.vertices)
-    lock = np.zeros(n, bool)
-    if locked is not None:
-        lock |= _check_inputs(surfaces.vertices, surfaces.faces, None, locked)[3]
-    splits = np.asarray(getattr(surfaces, "splits", np.zeros((0, 4), np.int32))).reshape(-1, 4)
-    if len(splits):
-        lock[np.asarray(surfaces.faces)[splits[:, 0]].ravel()] = True
-    bg = getattr(surfaces, "background", None)
-    labels = np.unique(np.asarray(surfaces.face_labels))
-    values = [int(x) for x in labels if bg is None or x != bg]
+    lock, values = _surface_lock(surfaces, locked)
     v, f, fl, info = decimate(surfaces.vertices, surfaces.faces, face_labels=surfaces.face_labels,
                               locked=lock, ratio=ratio, target_faces=target_faces,
                               max_error=max_error, progress=progress, shell_values=values,
                               **options)
-    new_face = np.full(len(surfaces.faces), -1, np.int64)
-    new_face[info["face_ids"]] = np.arange(len(info["face_ids"]))
+    out = _surfaces_result(surfaces, v, f, fl, info["vertex_ids"], info["face_ids"])
+    return out, _public(info)
+
+
+def _surface_lock(surfaces, locked):
+    """Locked vertices of a SurfaceSet run (caller's, plus every corner of a face with split
+    rows) and the label values to measure (the background excluded)."""
+    for name in ("vertices", "faces", "face_labels"):
+        if not hasattr(surfaces, name):
+            raise AnatomeshError(f"expected a SurfaceSet (with {name}), got "
+                                 f"{type(surfaces).__name__}: use the Mesh variant for one surface")
+    lock = np.zeros(len(surfaces.vertices), bool)
+    if locked is not None:
+        lock |= _check_inputs(surfaces.vertices, surfaces.faces, None, locked)[3]
+    splits = _splits(surfaces)
+    if len(splits):
+        lock[np.asarray(surfaces.faces)[splits[:, 0]].ravel()] = True
+    bg = getattr(surfaces, "background", None)
+    labels = np.unique(np.asarray(surfaces.face_labels))
+    return lock, [int(x) for x in labels if bg is None or x != bg]
+
+
+def _splits(surfaces) -> np.ndarray:
+    return np.asarray(getattr(surfaces, "splits", np.zeros((0, 4), np.int32))).reshape(-1, 4)
+
+
+def _surfaces_result(surfaces, v, f, fl, vertex_ids, face_ids):
+    """A copy of ``surfaces`` with the decimated arrays; lattice and split rows carried over
+    (``vertex_ids``/``face_ids``: the input index of each kept vertex and face)."""
+    splits = _splits(surfaces)
     changes = {"vertices": v, "faces": f, "face_labels": fl}
     if hasattr(surfaces, "lattice"):
-        changes["lattice"] = np.asarray(surfaces.lattice)[info["vertex_ids"]]
+        changes["lattice"] = np.asarray(surfaces.lattice)[vertex_ids]
     if len(splits):
+        new_face = np.full(len(surfaces.faces), -1, np.int64)
+        new_face[face_ids] = np.arange(len(face_ids))
         rows = splits[new_face[splits[:, 0]] >= 0].copy()
         rows[:, 0] = new_face[rows[:, 0]]
         changes["splits"] = rows.astype(np.int32)
     if hasattr(surfaces, "warnings"):
         changes["warnings"] = list(surfaces.warnings)
     if dataclasses.is_dataclass(surfaces):
-        out = dataclasses.replace(surfaces, **changes)
-    else:  # pragma: no cover - duck-typed containers
-        out = surfaces
-        for k, val in changes.items():
-            setattr(out, k, val)
-    return out, _public(info)
+        return dataclasses.replace(surfaces, **changes)
+    out = surfaces  # pragma: no cover - duck-typed containers
+    for k, val in changes.items():
+        setattr(out, k, val)
+    return out
 
 
 def _public(info: Dict) -> Dict:
@@ -244,12 +256,51 @@ def _public(info: Dict) -> Dict:
 # ---------------------------------------------------------------------------------------------
 # input checks
 # ---------------------------------------------------------------------------------------------
+@dataclasses.dataclass
+class _Prepared:
+    """Checked inputs of one decimation run (shared with :mod:`anatomesh.core.lod`)."""
+
+    v: np.ndarray            # (N, 3) float64 input positions, mm
+    f: np.ndarray            # (M, 3) int32
+    fl: Optional[np.ndarray]  # (M, 2) int32 or None
+    lock: np.ndarray         # (N,) bool
+    multi: bool
+    values: np.ndarray       # label values (dense index -> value); [0, 1] for a plain mesh
+    dense: np.ndarray        # (M, 2) int32 dense labels
+    counts: np.ndarray       # faces per dense label
+    centre: np.ndarray       # (3,) the run works on v - centre
+    v64: np.ndarray          # (N, 3) float64 centred positions
+    cos_max: float
+
+
+def _prepare(vertices, faces, face_labels, locked, max_normal_angle, min_quality) -> _Prepared:
+    v, f, fl, lock = _check_inputs(vertices, faces, face_labels, locked)
+    if not 0.0 < max_normal_angle <= 180.0:
+        raise AnatomeshError(f"max_normal_angle must be in (0, 180] degrees, got {max_normal_angle}")
+    if not 0.0 <= min_quality < 1.0:
+        raise AnatomeshError(f"min_quality must be in [0, 1), got {min_quality}")
+    multi = fl is not None
+    if multi:
+        values, dense = np.unique(fl, return_inverse=True)
+        dense = dense.reshape(-1, 2).astype(np.int32)
+        counts = np.bincount(dense.ravel(), minlength=len(values)).astype(np.int64)
+    else:
+        values = np.array([0, 1])
+        dense = np.zeros((len(f), 2), np.int32)
+        dense[:, 1] = 1
+        counts = np.array([len(f), len(f)], np.int64)
+    lo, hi, _ = _k.bounds(v)
+    centre = 0.5 * (lo + hi) if len(v) else np.zeros(3)
+    return _Prepared(v, f, fl, lock, multi, values, dense, counts, centre, v - centre,
+                     float(np.cos(np.radians(max_normal_angle))))
+
+
 def _check_inputs(vertices, faces, face_labels, locked):
     v = np.asarray(vertices)
     if v.ndim != 2 or v.shape[1] != 3:
         raise AnatomeshError(f"vertices must be an (N, 3) array of positions in mm, got shape {v.shape}")
     v = np.ascontiguousarray(v, dtype=np.float64)
-    if not np.all(np.isfinite(v)):
+    if not _k.bounds(v)[2]:
         raise AnatomeshError("vertices contain NaN or infinite coordinates: clean the mesh first")
     f = check_faces(faces, len(v))
     fl = None
@@ -366,31 +417,36 @@ def _budget(kind, value, values, counts, n_faces, multi, factor):
     return lab_target, lab_cost, listed, final, max_cost
 
 
-def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress, attempt):
+def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress, attempt,
+              log=None, log_stop=False):
     """Run collapse sweeps with rising cost thresholds until the target is met or nothing is
-    left to collapse; returns (vertices, faces, kept face ids, kept vertex ids, stats)."""
+    left to collapse; returns (vertices, faces, kept face ids, kept vertex ids, stats).
+
+    ``log``: optional ``(keep, drop, where, face_death)`` arrays receiving the collapse sequence
+    (see :func:`_k.collapse_pass`); with ``log_stop`` the run stops when the log is full.
+    ``stats["logged"]`` is the number of collapses recorded."""
     lab_target, lab_cost, listed, final, max_cost = budget
     n, m = len(v64), len(f)
     V = v64.copy()
     F = f.copy()
     falive = np.ones(m, np.bool_)
     refs, vstart, vcount, nref = _k.initial_refs(F, n, max(m, 1024))
+    used_before = int(np.count_nonzero(vcount))
     vclass = _k.classify(F, dense, refs, vstart, vcount, multi)
     vclass[lock] = 2
     ca, cb, cf = _k.feature_constraints(F, dense, refs, vstart, vcount, vclass, multi)
     Q = _k.build_quadrics(V, F, ca, cb, cf)
-    err = np.empty((m, 3))
-    _k.edge_costs(V, Q, F, vclass, err)
-    park = np.zeros((m, 3), np.bool_)     # refused edges, until a collapse next to them
+    FD = _k.face_frames(V, F)             # per face: 3 edge costs, unit normal, quality
+    _k.edge_costs(V, Q, F, vclass, FD, multi)
     mark = np.zeros(n, np.int64)          # scratch vertex marks of the link test
-    fn, fq = _k.face_frames(V, F)          # unit normals and qualities, kept up to date
     budgets = bool(np.any(lab_target >= 0) or np.any(np.isfinite(lab_cost)) or not listed.all())
     ver = np.zeros(n, np.int32)
     vstamp = np.zeros(n, np.int32)
     lab_count = np.bincount(dense.ravel(), minlength=nlab).astype(np.int64)
-    log_a = np.zeros(0, np.int32)
-    log_b = np.zeros(0, np.int32)
-    stats = np.zeros(2)
+    if log is None:
+        log = (np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros(0, np.int32))
+    log_a, log_b, log_p, fdeath = log
+    stats = np.zeros(9)
     nalive, nlog = m, 0
     span = max(m - final, 1)
     step = max(1, m // 30000)
@@ -405,7 +461,7 @@ def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress
             break
         need = nalive - final
         frac = min(0.5, max(0.002, need / (2.0 * nalive))) * boost
-        sample = _k.sample_costs(err, falive, park, step)
+        sample = _k.sample_costs(FD, falive, step)
         if sample.size == 0:
             break
         if frac >= 1.0:
@@ -419,9 +475,9 @@ def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress
         start, done = 0, 0
         while True:
             code, nalive, nref, start, got, nlog = _k.collapse_pass(
-                live, V, Q, F, falive, dense, vclass, ver, refs, vstart, vcount, nref, err, vstamp,
+                live, V, Q, F, falive, dense, vclass, ver, refs, vstart, vcount, nref, FD, vstamp,
                 stamp, tau, start, nalive, final, lab_count, lab_target, lab_cost, listed, budgets,
-                multi, cos_max, q_min, log_a, log_b, nlog, stats, park, mark, fn, fq)
+                multi, cos_max, q_min, log_a, log_b, log_p, fdeath, log_stop, nlog, stats, mark)
             done += got
             if code != _k.REFS_FULL:
                 break
@@ -435,7 +491,8 @@ def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress
             if retried:
                 break                   # nothing collapsible is left under the bound
             # refused edges were parked; their neighbourhoods may have changed: try all again
-            park[:] = False
+            costs = FD[:, :3]
+            np.copyto(costs, -1.0 - costs, where=costs < 0.0)
             retried = True
             continue
         retried = retried and done == 0
@@ -451,7 +508,8 @@ def _collapse(v64, f, dense, multi, lock, budget, nlab, cos_max, q_min, progress
     remap[used] = np.arange(used.size)
     return V[used], remap[nf].astype(np.int32), keep_f, used, {
         "collapses": int(np.count_nonzero(ver < 0)), "max_cost": float(stats[0]),
-        "candidates": int(stats[1])}
+        "candidates": int(stats[1]), "logged": int(nlog), "vertices_before": used_before,
+        "refused": stats[2:].astype(np.int64)}
 
 
 # ---------------------------------------------------------------------------------------------

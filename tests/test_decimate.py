@@ -91,6 +91,39 @@ def test_locked_vertices_do_not_move_and_result_is_deterministic():
     assert np.array_equal(a[0][kept], v[locked].astype(np.float32))
 
 
+def test_triangle_quality_and_orientation_kept_on_a_sphere():
+    # the guards: no sliver below min_quality (the input has none), no face turned inside out
+    v, f = icosphere(5, 10.0)
+    nv, nf, _, info = decimate(v, f, ratio=0.03, measure=False)
+    _check_closed(nv, nf, genus=0)
+    p = nv[nf].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    l2 = sum(np.einsum("ij,ij->i", p[:, i] - p[:, j], p[:, i] - p[:, j]) for i, j in ((0, 1), (1, 2), (2, 0)))
+    quality = 2 * np.sqrt(3) * np.linalg.norm(n, axis=1) / l2
+    assert quality.min() >= 0.05
+    assert np.all(np.einsum("ij,ij->i", n, p.mean(axis=1)) > 0)
+
+
+def test_open_grid_boundary_simplified_and_kept_on_the_border():
+    # a flat 60 x 60 square: interior edges are stored once, boundary edges must still collapse
+    n = 61
+    x, y = np.meshgrid(np.arange(n, dtype=float), np.arange(n, dtype=float), indexing="ij")
+    v = np.c_[x.ravel(), y.ravel(), np.zeros(n * n)]
+    a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    f = np.concatenate([np.c_[a, a + n, a + n + 1], np.c_[a, a + n + 1, a + 1]]).astype(np.int32)
+    nv, nf, _, info = decimate(v, f, ratio=0.05, measure=False)
+    t0, t1 = topology(v, f), topology(nv, nf)
+    assert t1.manifold and t1.oriented and t1.components == 1 and t1.boundary_edges > 0
+    assert t1.boundary_edges < 0.5 * t0.boundary_edges and len(nf) <= 0.05 * len(f) + 2
+    border = (nv[:, 0] == 0) | (nv[:, 0] == 60) | (nv[:, 1] == 0) | (nv[:, 1] == 60)
+    e = np.sort(np.concatenate([nf[:, [0, 1]], nf[:, [1, 2]], nf[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    assert np.all(border[uniq[count == 1].ravel()])            # open edges stay on the border
+    assert np.all(nv[:, 2] == 0) and nv[:, :2].min() == 0 and nv[:, :2].max() == 60
+    area_z = np.cross(nv[nf[:, 1]] - nv[nf[:, 0]], nv[nf[:, 2]] - nv[nf[:, 0]])[:, 2] / 2
+    assert np.all(area_z > 0) and abs(area_z.sum() - 3600) < 1e-3      # all up, square covered
+
+
 def test_decimate_mesh_wrapper():
     v, f = icosphere(3, 2.0)
     mesh = Mesh(v, f, name="ball", value=1)
@@ -196,7 +229,7 @@ def test_multilabel_per_label_ratio_budgets_the_listed_label():
 # ---------------------------------------------------------------------------------------------
 def test_totalsegmentator_map_within_one_voxel():
     """41-label TotalSegmentator map (3 mm voxels), lightly smoothed: with max_error = 3 mm
-    (one voxel) at least 65 % of the faces go (measured: 71 %, 2 attempts, worst shell 2.55 mm),
+    (one voxel) at least 65 % of the faces go (measured: 71 %, 2 attempts, worst shell 2.83 mm),
     every shell keeps its topology, and the measured symmetric Hausdorff distance of every shell
     stays under 3 mm."""
     from anatomesh.core.extract.labels import label_surfaces
