@@ -90,7 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "shells closed; the error in mm is measured and reported")
     m.add_argument("--target-faces", type=int, metavar="N", help="decimate to N faces in all")
     m.add_argument("--max-error", type=float, metavar="MM",
-                   help="decimate as far as the surface stays within MM of the smoothed one")
+                   help="decimate as far as the surface stays within MM of the smoothed one; with "
+                        "--decimate/--target-faces a cap on their error (default: one voxel)")
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")

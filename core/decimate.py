@@ -100,7 +100,10 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
         (always done for ``max_error``).
     shell_values : label values to measure (default: all; plain meshes: the one surface).
 
-    Exactly one of ``ratio``, ``target_faces``, ``max_error`` must be given. Per-label dicts
+    One of ``ratio``, ``target_faces``, ``max_error`` must be given; ``max_error`` (one number)
+    may also come with ``ratio`` or ``target_faces`` as a cap: the face target is pursued but no
+    collapse may exceed the bound (measured and enforced as for ``max_error`` alone), so a target
+    the shapes cannot reach within it stops short (``target_met`` False). Per-label dicts
     budget the listed labels only; edges touching no listed label are not collapsed.
 
     Returns
@@ -120,11 +123,14 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
     t0 = time.perf_counter()
     p = _prepare(vertices, faces, face_labels, locked, max_normal_angle, min_quality)
     v, f, fl, multi, values, centre = p.v, p.f, p.fl, p.multi, p.values, p.centre
-    kind, value = _check_target(ratio, target_faces, max_error, multi)
+    kind, value, cap = _check_target(ratio, target_faces, max_error, multi)
 
-    factors = _ERROR_FACTORS if kind == "max_error" else (None,)
+    bounded = kind == "max_error" or cap is not None
+    factors = _ERROR_FACTORS if bounded else (None,)
     for attempt, factor in enumerate(factors):
         budget = _budget(kind, value, values, p.counts, len(f), multi, factor)
+        if cap is not None:
+            budget = budget[:4] + ((factor * cap) ** 2,)
         nv, nf, keep_f, keep_v, stats = _collapse(p.v64, f, p.dense, multi, p.lock, budget,
                                                   len(values), p.cos_max, min_quality, progress,
                                                   attempt)
@@ -136,21 +142,21 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
                 "candidates_checked": stats["candidates"],
                 "quadric_error_mm": float(np.sqrt(stats["max_cost"])),
                 "vertex_ids": keep_v, "face_ids": keep_f}
-        if kind == "max_error":
-            info["error_bound_mm"] = value
-        else:
+        if bounded:
+            info["error_bound_mm"] = value if cap is None else cap
+        if kind != "max_error":
             # ratio / face targets can stop short: every remaining collapse would break a shell's
             # topology, a junction, or triangle quality (e.g. many tiny closed components)
             info["target_met"] = bool(_target_met(kind, value, values, fl, nf, out_fl, budget))
-        if measure or kind == "max_error":
+        if measure or bounded:
             report(progress, 0.97, "measuring the error")
             shells = _measure_shells(v, f, fl, out_v, nf, out_fl, shell_values)
             info["shells"] = shells
             info["hausdorff_mm"] = max((s["hausdorff_mm"] for s in shells.values()), default=0.0)
             info["mean_mm"] = max((s["mean_mm"] for s in shells.values()), default=0.0)
-        if kind != "max_error":
+        if not bounded:
             break
-        met = all(s["hausdorff_mm"] <= _bound_of(value, lab) + 1e-9
+        met = all(s["hausdorff_mm"] <= _bound_of(value if cap is None else cap, lab) + 1e-9
                   for lab, s in info["shells"].items())
         info["error_bound_met"] = bool(met)
         info["attempts"] = attempt + 1
@@ -330,6 +336,11 @@ def _check_inputs(vertices, faces, face_labels, locked):
 
 
 def _check_target(ratio, target_faces, max_error, multi):
+    cap = None
+    if max_error is not None and (ratio is not None or target_faces is not None):
+        if isinstance(max_error, dict):
+            raise AnatomeshError("a max_error cap with a ratio or target_faces must be one number (mm)")
+        cap, max_error = _check_value("max_error", max_error), None
     given = [(k, x) for k, x in (("ratio", ratio), ("target_faces", target_faces),
                                  ("max_error", max_error)) if x is not None]
     if len(given) != 1:
@@ -349,8 +360,8 @@ def _check_target(ratio, target_faces, max_error, multi):
                 out[int(lab)] = _check_value(kind, x)
             except (TypeError, ValueError):
                 raise AnatomeshError(f"{kind} keys must be label values (integers), got {lab!r}")
-        return kind, out
-    return kind, _check_value(kind, value)
+        return kind, out, cap
+    return kind, _check_value(kind, value), cap
 
 
 def _check_value(kind, x):

@@ -58,9 +58,11 @@ class Recipe:
     the raw surface); ``iterations``/``lam``/``mu`` override the preset, ``max_deviation`` (mm) caps
     every vertex's displacement, ``damping_distance`` (mm) enables distance-aware damping,
     ``staircase`` ("auto", "on", "off") the extra slice-axis passes for thick slices.
-    ``decimate`` (ratio of faces kept, 0–1], ``target_faces`` or ``max_error`` (mm): at most one,
+    ``decimate`` (ratio of faces kept, 0–1] or ``target_faces``, and/or ``max_error`` (mm):
     decimation after smoothing (:mod:`anatomesh.core.decimate`; a label map's SurfaceSet as a
-    whole, so seams stay shared). ``check``: run the print checks (:func:`~anatomesh.core.printcheck.
+    whole, so seams stay shared). With a ratio or face count, ``max_error`` caps the error (default:
+    one voxel, the largest spacing), so a target the shapes cannot reach stops short with a warning
+    instead of ruining small organs. ``check``: run the print checks (:func:`~anatomesh.core.printcheck.
     check_parts`) with ``profile`` ("fdm", "resin"), ``min_wall``/``min_gap`` (mm) overriding it.
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     """
@@ -139,7 +141,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 
     t3 = time.perf_counter()
     report(progress, 0.55, "decimating")
-    final, decimation = decimate(smoothed, recipe, sub(progress, 0.55, 0.7))
+    final, decimation = decimate(smoothed, recipe, sub(progress, 0.55, 0.7),
+                                 default_cap=float(max(volume.spacing)))
     timings["decimate_s"] = time.perf_counter() - t3
     surface_set = final if hasattr(final, "shells") else None
     surfaces = final.shells() if surface_set is not None else list(final)
@@ -187,11 +190,15 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 
 def _decimation_warnings(decimation: Optional[Dict], recipe: Recipe) -> List[str]:
     out = []
-    if decimation is not None and decimation.get("target_met") is False:
-        out.append("decimation stopped short of its target: every remaining collapse would change "
-                   "a shell's topology or spoil triangles")
-    if decimation is not None and decimation.get("error_bound_met") is False:
-        out.append(f"decimation could not keep every shell within {recipe.max_error} mm "
+    if decimation is None:
+        return out
+    bound = decimation["target"].get("max_error_mm")
+    if decimation.get("target_met") is False:
+        cap = f", or exceed the {bound} mm error cap (--max-error raises it)" if bound is not None else ""
+        out.append(f"decimation stopped at {decimation['faces_after']} faces, short of its target: "
+                   f"every further collapse would change a shell's topology, spoil triangles{cap}")
+    if decimation.get("error_bound_met") is False:
+        out.append(f"decimation could not keep every shell within {bound} mm "
                    "(see decimation_max_error_mm)")
     return out
 
@@ -219,10 +226,9 @@ def check_recipe(recipe: Recipe) -> None:
                                  ("profile", recipe.profile, PROFILES)):
         if value not in allowed:
             raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
-    targets = [n for n in ("decimate", "target_faces", "max_error") if getattr(recipe, n) is not None]
-    if len(targets) > 1:
-        raise AnatomeshError(f"give one decimation target, not {' and '.join(targets)} "
-                             "(--decimate RATIO, --target-faces N or --max-error MM)")
+    if recipe.decimate is not None and recipe.target_faces is not None:
+        raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
+                             "may come with either as a cap on the error)")
     if recipe.decimate is not None and not 0.0 < recipe.decimate <= 1.0:
         raise AnatomeshError(f"--decimate is the fraction of faces kept, in (0, 1], got {recipe.decimate}")
     if recipe.target_faces is not None and (int(recipe.target_faces) != recipe.target_faces
@@ -300,8 +306,12 @@ def smooth(surfaces, volume: Volume, recipe: Recipe, progress: Optional[Progress
     return meshes, merged or {"method": method, "params": {}, "shells": {}, "warnings": []}
 
 
-def decimate(surfaces, recipe: Recipe, progress: Optional[Progress] = None):
+def decimate(surfaces, recipe: Recipe, progress: Optional[Progress] = None,
+             default_cap: Optional[float] = None):
     """Decimate a SurfaceSet as a whole (seams stay shared) or each isosurface Mesh.
+
+    A ratio or face-count target is capped by ``recipe.max_error`` or else ``default_cap`` (mm,
+    the pipeline passes one voxel): the run stops short rather than exceed it.
 
     Returns ``(decimated, summary)``; ``summary`` is None without a target, else the target, the
     worst shell's ``hausdorff_mm``/``mean_mm``, the face counts, ``seconds``, ``target_met`` or
@@ -316,6 +326,9 @@ def decimate(surfaces, recipe: Recipe, progress: Optional[Progress] = None):
         return surfaces, None
     if "target_faces" in target:
         target["target_faces"] = int(target["target_faces"])
+    capped_by_default = "max_error" not in target and default_cap is not None
+    if capped_by_default:
+        target["max_error"] = round(default_cap, 4)
     if hasattr(surfaces, "shells"):
         out, rep = decimate_surfaces(surfaces, progress=progress, **target)
         shells = {_value_key(k): v for k, v in rep["shells"].items()}
@@ -342,6 +355,8 @@ def decimate(surfaces, recipe: Recipe, progress: Optional[Progress] = None):
                "hausdorff_mm": max((float(s["hausdorff_mm"]) for s in shells.values()), default=0.0),
                "mean_mm": max((float(s["mean_mm"]) for s in shells.values()), default=0.0),
                "seconds": float(sum(r["seconds"] for r in reps)), "shells": shells}
+    if capped_by_default:
+        summary["target"]["max_error_mm_source"] = "default cap: one voxel"
     for flag in ("target_met", "error_bound_met"):
         if any(flag in r for r in reps):
             summary[flag] = all(r.get(flag, True) for r in reps)

@@ -59,7 +59,7 @@ _NOTES = {
     "surfaces": "isosurfaces capped at the volume's border; drop small components (mm3)",
     "smoothing": "method: organ, light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
                  "normal_median, none",
-    "decimation": "one target: ratio of faces kept, target_faces, or max_error_mm",
+    "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it",
     "output": "formats: stl, ply, obj, 3mf, glb, blend, png",
 }

@@ -134,7 +134,8 @@ def test_decimate_mesh_wrapper():
 
 @pytest.mark.parametrize("kwargs, words", [
     (dict(ratio=0.0), "ratio"), (dict(ratio=1.5), "ratio"), (dict(), "exactly one"),
-    (dict(ratio=0.5, max_error=1.0), "exactly one"), (dict(max_error=-1.0), "max_error"),
+    (dict(ratio=0.5, target_faces=10), "exactly one"),
+    (dict(ratio=0.5, max_error={1: 1.0}), "one number"), (dict(max_error=-1.0), "max_error"),
     (dict(target_faces=10.5), "target_faces"), (dict(ratio={1: 0.5}), "face_labels"),
     (dict(ratio=0.5, face_labels=np.zeros((3, 2), int)), "face_labels"),
     (dict(ratio=0.5, locked=np.array([10 ** 6])), "locked"),
@@ -248,3 +249,37 @@ def test_totalsegmentator_map_within_one_voxel():
         assert t1.closed and t1.manifold and t1.oriented, (value, t1)
         assert (t1.genus, t1.components) == (t0.genus, t0.components), value
     assert len(out.splits) == len(ss.splits)          # pinch points untouched
+
+
+@pytest.mark.parametrize("folder, name", [("pulmonary", "heart.nii.gz"), ("aorta", "aorta.nii.gz")])
+def test_totalsegmentator_masks_lose_90_percent_within_one_voxel(folder, name):
+    """TotalSegmentator heart and aorta masks (1.5 mm voxels), organ-smoothed: keeping 10 % of
+    the faces stays within one voxel (1.5 mm; measured 1.19 mm heart, 0.66 mm aorta)."""
+    from anatomesh.core import label_surfaces, load
+    from anatomesh.core.smooth import smooth_surfaces
+
+    ss, _ = smooth_surfaces(label_surfaces(load(shared("totalsegmentator", folder, name))), "organ")
+    out, rep = decimate_surfaces(ss, ratio=0.1)
+    assert rep["target_met"] and rep["faces_after"] <= 0.1 * rep["faces_before"] + 2
+    assert rep["hausdorff_mm"] <= 1.5 and rep["mean_mm"] <= 0.3
+    for shell in out.shells():
+        t = topology(shell.vertices, shell.faces)
+        assert t.closed and t.manifold and t.oriented
+
+
+def test_ratio_with_an_error_cap_stops_short_instead_of_ruining_small_organs():
+    """The 61-label map (3 mm voxels): 10 % of the faces is out of reach for its small and thin
+    labels (ribs, vessels) within any sane error — alone, the ratio drives a shell 58 mm off. With
+    a 3 mm cap the run stops short (target_met False), every shell within the cap, topology kept."""
+    from anatomesh.core import label_surfaces, load
+    from anatomesh.core.smooth import smooth_surfaces
+
+    ss, _ = smooth_surfaces(label_surfaces(load(shared("totalsegmentator",
+                                                       "example_seg_fast_force_split.nii.gz"))), "organ")
+    out, rep = decimate_surfaces(ss, ratio=0.1, max_error=3.0)
+    assert rep["error_bound_mm"] == 3.0 and rep["error_bound_met"]
+    assert not rep["target_met"] and rep["faces_after"] < 0.5 * rep["faces_before"]
+    assert all(s["hausdorff_mm"] <= 3.0 for s in rep["shells"].values())
+    for shell in out.shells():
+        t = topology(shell.vertices, shell.faces)
+        assert t.closed and t.manifold and t.oriented
