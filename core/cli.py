@@ -92,6 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--max-error", type=float, metavar="MM",
                    help="decimate as far as the surface stays within MM of the smoothed one; with "
                         "--decimate/--target-faces a cap on their error (default: one voxel)")
+    m.add_argument("--lod", type=int, metavar="N",
+                   help="also write N GLB levels of detail, <scan>_lod0.glb (finest) .. _lod{N-1}.glb, "
+                        "each half the faces of the one before, from one progressive decimation run")
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
@@ -135,7 +138,7 @@ def cmd_inspect(args) -> int:
 _RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
                  "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
                  "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
-                 "profile", "min_wall", "min_gap", "report", "overwrite")
+                 "profile", "min_wall", "min_gap", "report", "overwrite", "lod")
 
 
 def recipe_from_args(args):

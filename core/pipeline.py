@@ -65,6 +65,10 @@ class Recipe:
     instead of ruining small organs. ``check``: run the print checks (:func:`~anatomesh.core.printcheck.
     check_parts`) with ``profile`` ("fdm", "resin"), ``min_wall``/``min_gap`` (mm) overriding it.
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
+    ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
+    ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
+    every shell's topology), all from one progressive decimation run (:mod:`anatomesh.core.lod`,
+    Hoppe 1996); 0 or 1: none.
     """
 
     input: Union[str, List[str]] = ""
@@ -95,6 +99,7 @@ class Recipe:
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
+    lod: int = 0
     report: Optional[str] = None
     overwrite: bool = False
 
@@ -156,9 +161,11 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     stem = scan_stem(volume, recipe)
     files = _plan_files(surfaces, recipe, out_dir)
     scene_files = _plan_scene_files(stem, files, recipe, out_dir)
+    lod_files = [out_dir / f"{stem}_lod{i}.glb" for i in range(recipe.lod if recipe.lod > 1 else 0)]
     _refuse_overwrite([p for fs in files for p in fs.values()] + list(scene_files.values())
-                      + [report_path, recipe_path], recipe.overwrite)
+                      + lod_files + [report_path, recipe_path], recipe.overwrite)
     write_outputs(surfaces, files, scene_files, stem, sub(progress, 0.7, 0.8))
+    lods = write_lods(final, recipe, lod_files, stem, report_path.parent, sub(progress, 0.8, 0.85))
     timings["write_s"] = time.perf_counter() - t4
     result = Result(volume, surfaces, {}, report_path, surface_set, recipe, scene_files)
     if headless is not None:
@@ -180,6 +187,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     timings["total_s"] = time.perf_counter() - t0
     rep = build_report(volume, recipe, surfaces, entries, files, report_path, timings, smoothing,
                        decimation=decimation, scene_files=scene_files, print_check=print_check)
+    if lods:
+        rep["lod"] = lods
     rep["warnings"] = list(volume.warnings) + list(getattr(raw, "warnings", [])) + \
         list(smoothing.get("warnings") or []) + _decimation_warnings(decimation, recipe)
     save_report(rep, recipe, report_path, recipe_path)
@@ -226,6 +235,8 @@ def check_recipe(recipe: Recipe) -> None:
                                  ("profile", recipe.profile, PROFILES)):
         if value not in allowed:
             raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+    if not (isinstance(recipe.lod, int) and 0 <= recipe.lod <= 8):
+        raise AnatomeshError(f"--lod is the number of GLB levels of detail, 0..8, got {recipe.lod!r}")
     if recipe.decimate is not None and recipe.target_faces is not None:
         raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
                              "may come with either as a cap on the error)")
@@ -470,6 +481,40 @@ def write_outputs(surfaces: List[Mesh], files: List[Dict[str, Path]], scene_file
         if fmt in scene_files:
             scene[fmt](surfaces, scene_files[fmt], title=title)
     report(progress, 1.0, "files written")
+
+
+def write_lods(final, recipe: Recipe, paths: List[Path], title: str, base: Path,
+               progress: Optional[Progress] = None) -> List[Dict]:
+    """Levels of detail of the final surfaces as GLB files, ``paths[0]`` the finest.
+
+    One progressive decimation run per SurfaceSet (seams shared at every level) or per isosurface
+    Mesh (:func:`anatomesh.core.lod.progressive`), levels at face ratios 1, 1/2, 1/4, ...; returns
+    per file ``{file, faces, hausdorff_mm, mean_mm}`` (the worst shell's distances to level 0).
+    """
+    if not paths:
+        return []
+    from .export import SCENE_FORMATS
+    from .lod import progressive
+
+    ratios = [0.5 ** i for i in range(len(paths) - 1, 0, -1)]  # coarsest first, 1.0 implied
+    sources = [final] if hasattr(final, "shells") else [m for m in final if m.n_faces]
+    pms = [progressive(src, face_ratios=ratios, progress=sub(progress, i / len(sources), (i + 1) / len(sources)))
+           for i, src in enumerate(sources)]
+    out = []
+    for i, path in enumerate(paths):
+        meshes, worst = [], {"hausdorff_mm": 0.0, "mean_mm": 0.0}
+        for pm in pms:
+            k = pm.n_levels - 1 - min(i, pm.n_levels - 1)
+            level = pm.level(k)
+            meshes += level.shells() if hasattr(level, "shells") else [level]
+            for sh in pm.measure(k).values():
+                worst = {key: max(worst[key], float(sh[key])) for key in worst}
+        for m in meshes:
+            _clean(m, recipe)
+        SCENE_FORMATS["glb"](meshes, path, title=f"{title} lod{i}")
+        out.append({"file": _rel(path, base.resolve()), "faces": int(sum(m.n_faces for m in meshes)),
+                    **{k: round(v, 4) for k, v in worst.items()}})
+    return out
 
 
 def _scene_writers(formats) -> Dict:

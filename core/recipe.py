@@ -51,7 +51,7 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
     "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap"},
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
-               "render_samples": "render_samples", "render_size": "render_size"},
+               "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
 #: a comment written above each section
 _NOTES = {
@@ -61,7 +61,7 @@ _NOTES = {
                  "normal_median, none",
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it",
-    "output": "formats: stl, ply, obj, 3mf, glb, blend, png",
+    "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
 }
 #: Recipe fields holding paths (resolved against the recipe's folder)
 PATH_FIELDS = ("input", "label_table", "out_dir", "report")
@@ -100,6 +100,7 @@ _TYPES = {
     "report": (lambda v: isinstance(v, str), "a file path"),
     "overwrite": (lambda v: isinstance(v, bool), "true or false"),
     "render_samples": (lambda v: _is_int(v), "a whole number"),
+    "lod": (lambda v: _is_int(v), "a whole number (GLB levels of detail, 0: none)"),
     "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
                     "[width, height] in pixels"),
 }

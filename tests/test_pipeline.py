@@ -178,3 +178,26 @@ def test_blend_without_blender_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(AnatomeshError, match="bpy"):
         run(Recipe(input=SEG, out_dir=str(tmp_path / "o"), formats=["stl", "blend"]))
     assert not (tmp_path / "o").exists()
+
+
+def test_levels_of_detail_written_as_glb_files(tmp_path):
+    """--lod 3: three GLBs from one progressive run, lod0 = the written surfaces, each level about
+    half the faces of the one before, every shell closed, the error in mm reported per level."""
+    from anatomesh.core.export_gltf import read_glb
+    from anatomesh.core.mesh import topology
+
+    res = run(Recipe(input=SEG, out_dir=str(tmp_path), labels=["liver", "gallbladder", "spleen"],
+                     formats=["stl"], lod=3))
+    lods = res.report["lod"]
+    assert [d["file"] for d in lods] == [f"example_seg_lod{i}.glb" for i in range(3)]
+    faces = [d["faces"] for d in lods]
+    assert faces[0] == sum(s["faces"] for s in res.report["surfaces"])
+    assert faces[0] > faces[1] > faces[2] and faces[1] <= 0.55 * faces[0]
+    assert lods[0]["hausdorff_mm"] == 0.0 < lods[1]["hausdorff_mm"] <= lods[2]["hausdorff_mm"]
+    for d in lods:
+        meshes = read_glb(tmp_path / d["file"])
+        assert sorted(m.name for m in meshes) == ["gallbladder", "liver", "spleen"]
+        assert sum(m.n_faces for m in meshes) == d["faces"]
+        for m in meshes:
+            t = topology(m.vertices, m.faces)
+            assert t.closed and t.manifold and t.oriented
