@@ -529,7 +529,14 @@ class ANATOMESH_OT_export(bpy.types.Operator):
         if not objs:
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
         os.makedirs(folder, exist_ok=True)
-        if self.format in ("GLB", "GLTF"):
+        if self.format == "3MF":
+            from ..core.export_3mf import write_3mf
+
+            path = os.path.join(folder, _slug(stem) + ".3mf")
+            self._refuse([path])
+            write_3mf(object_meshes(context, objs), path, title=stem)
+            written = [path]
+        elif self.format in ("GLB", "GLTF"):
             path = os.path.join(folder, _slug(stem) + (".glb" if self.format == "GLB" else ".gltf"))
             self._refuse([path])
             export_gltf(context, objs, path, self.format)
@@ -563,27 +570,38 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "surface"
 
 
-def export_meshes(context, objects, folder: str, fmt: str, refuse=None) -> List[str]:
-    """One file per object through core's writers (mm, ``SPACE=`` recorded); returns the paths."""
-    from ..core.export import write_mesh
+def object_meshes(context, objects) -> list:
+    """Core :class:`Mesh` copies of ``objects`` as evaluated (modifiers applied), world mm, with
+    name, label value, space and the label colour (sRGB, as the label table gives it)."""
+    from ..core._export_common import linear_to_srgb
     from ..core.mesh import Mesh
 
     depsgraph = context.evaluated_depsgraph_get()
+    out = []
+    for o in objects:
+        v, f = bridge.world_arrays(o, depsgraph)
+        out.append(Mesh(v, f, name=o.get("anatomesh_name", o.name), value=o.get("anatomesh_value"),
+                        color=tuple(float(c) for c in linear_to_srgb(o.color[:3])),
+                        space=str(o.get("anatomesh_space", "RAS"))))
+    return out
+
+
+def export_meshes(context, objects, folder: str, fmt: str, refuse=None) -> List[str]:
+    """One file per object through core's writers (mm, ``SPACE=`` recorded); returns the paths."""
+    from ..core.export import write_mesh
+
     plans, used = [], set()
     for o in objects:
         stem = _slug(o.get("anatomesh_name", o.name))
         if stem in used:
             stem = _slug(o.name)
         used.add(stem)
-        plans.append((o, os.path.join(folder, f"{stem}.{fmt}")))
+        plans.append(os.path.join(folder, f"{stem}.{fmt}"))
     if refuse is not None:
-        refuse([p for _, p in plans])
-    for o, path in plans:
-        v, f = bridge.world_arrays(o, depsgraph)
-        m = Mesh(v, f, name=o.get("anatomesh_name", o.name), value=o.get("anatomesh_value"),
-                 color=tuple(o.color[:3]), space=str(o.get("anatomesh_space", "RAS")))
+        refuse(plans)
+    for m, path in zip(object_meshes(context, objects), plans):
         write_mesh(m, path, fmt)
-    return [p for _, p in plans]
+    return plans
 
 
 def export_gltf(context, objects, path: str, fmt: str) -> None:

@@ -41,6 +41,7 @@ EXPORT_FORMAT_ITEMS = (
     ("STL", "STL (binary)", "One binary STL per object, in mm, SPACE= in the header"),
     ("PLY", "PLY", "One binary PLY per object, in mm"),
     ("OBJ", "OBJ", "One OBJ per object, in mm"),
+    ("3MF", "3MF (print)", "One .3mf with every object as a part, colours, unit millimetre"),
     ("GLB", "glTF binary (.glb)", "One .glb with all objects and colours (glTF is in metres)"),
     ("GLTF", "glTF (.gltf)", "One .gltf + .bin with all objects (glTF is in metres)"),
 )

@@ -183,7 +183,7 @@ def test_max_deviation_is_a_hard_bound(scan, mods):
     assert 0.2 < worst <= 0.4 + 1e-4
 
 
-def test_export_files_reimport_with_same_counts_and_extents(scan, mods, tmp_path):
+def test_export_files_reimport_with_same_counts_and_extents(scan, mods, volume, tmp_path):
     bridge, _ = mods
     liver = bpy.data.objects["liver"]
     v_liver = bridge.positions(liver.data)
@@ -207,6 +207,14 @@ def test_export_files_reimport_with_same_counts_and_extents(scan, mods, tmp_path
         n_expected = len(np.unique(v_liver, axis=0)) if fmt == "STL" else len(v_liver)
         assert len(v) == n_expected, fmt
         np.testing.assert_allclose(np.stack([v.min(0), v.max(0)]), box, atol=1e-3, err_msg=fmt)
+    # 3MF: one print file, every organ a part with its label colour, unit mm
+    from anatomesh.core.export_3mf import read_3mf
+
+    assert bpy.ops.anatomesh.export(directory=str(tmp_path / "3MF"), format="3MF", collection=scan.name) == {"FINISHED"}
+    parts = {m.name: m for m in read_3mf(tmp_path / "3MF" / "example_seg.3mf")}
+    assert len(parts) == 41 and len(parts["liver"].faces) == len(liver.data.polygons)
+    np.testing.assert_allclose(np.stack([parts["liver"].vertices.min(0), parts["liver"].vertices.max(0)]), box, atol=1e-3)
+    assert parts["liver"].color[:3] == pytest.approx(tuple(volume.labels[5].color)[:3], abs=1 / 255)
     # glTF: one file, metres, Y up; the importer brings it back Z up
     out = tmp_path / "GLB"
     assert bpy.ops.anatomesh.export(directory=str(out), format="GLB", collection=scan.name) == {"FINISHED"}
