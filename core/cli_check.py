@@ -3,7 +3,8 @@
 Reads STL/PLY/OBJ/3MF files or a folder written by ``anatomesh mesh``, checks all parts together
 for a printer profile, prints a summary and optionally writes the JSON report. Optional fixes
 (``--remove-tiny``, ``--close-holes``, ``--separate``; :mod:`.printfix`) work on the meshes read
-and write the fixed parts to ``--out`` as STL; the checks then run on the fixed parts.
+and write the fixed parts to ``--out`` as STL, plus all of them in one print-ready ``parts.3mf``
+(a part per object, colours, unit mm); the checks then run on the fixed parts.
 
 Exit codes: 0 every check passes, 1 a check fails, 2 bad input (one line on stderr).
 """
@@ -40,7 +41,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--separate", type=float, metavar="MM",
                    help="fix: pull touching parts apart by this clearance (each side of a shared "
                         "interface moves back by half); needs --out")
-    p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL (with a fix option)")
+    p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
+                                                "parts.3mf (with a fix option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
     p.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_check)
@@ -96,9 +98,10 @@ def cmd_check(args) -> int:
 
 
 def _apply_fixes(meshes, args):
-    """Apply the requested mesh fixes and write each part as STL into ``args.out``."""
+    """Apply the requested mesh fixes; write each part as STL and all in ``parts.3mf`` into ``args.out``."""
     from . import printfix
     from .export import write_stl
+    from .export_3mf import write_3mf
     from .pipeline import _slug
 
     out = Path(args.out)
@@ -110,7 +113,8 @@ def _apply_fixes(meshes, args):
             stem += "_"
         used.add(stem)
         plans.append(out / f"{stem}.stl")
-    existing = [p for p in plans if p.exists()]
+    combined = out / "parts.3mf"
+    existing = [p for p in plans + [combined] if p.exists()]
     if existing and not args.overwrite:
         raise AnatomeshError(f"{len(existing)} file(s) already exist in --out (e.g. {existing[0].name}); "
                              "pass --overwrite or choose another folder", out)
@@ -137,6 +141,7 @@ def _apply_fixes(meshes, args):
     for m, path, entry in zip(fixed, plans, log):
         write_stl(m, path)
         entry["summary"] = "; ".join(entry.pop("done")) or "nothing to fix"
+    write_3mf(fixed, combined, title="fixed parts")
     return fixed, log
 
 

@@ -132,6 +132,9 @@ def test_fixes_remove_tiny_shells_and_close_holes_then_pass(capsys, tmp_path):
     assert t.closed and t.manifold and t.oriented and t.components == 1
     rep = json.loads(rep_path.read_text())
     assert rep["fixes"][0]["name"] == "cube" and rep["passed"]
+    from anatomesh.core.export_3mf import read_3mf  # the print-ready file holds the fixed part
+    (part,) = read_3mf(tmp_path / "fixed" / "parts.3mf")
+    assert part.name == "cube" and len(part.faces) == len(fixed.faces)
     code, _, err = run(capsys, "check", src, "--remove-tiny", "1", "--out", tmp_path / "fixed")
     assert code == 2 and "--overwrite" in err
 
