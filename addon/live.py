@@ -39,6 +39,9 @@ class ScanSurface:
     face_groups: Optional[np.ndarray] = None
     lattice: Optional[np.ndarray] = None
     affine: Optional[np.ndarray] = None
+    #: the constraint last built for this surface, by (max deviation, in cell): reused while
+    #: other sliders move
+    constraints: Dict[tuple, object] = field(default_factory=dict, repr=False)
 
 
 #: collection name → its unsmoothed surface
@@ -162,14 +165,19 @@ def smooth_vertices(surf: ScanSurface, method: str, iterations: int, strength: f
     elif name == "mean_curvature":
         params.update(step=lam)
     md = float(max_deviation) if max_deviation and max_deviation > 0 else None
-    constraint = None
-    if in_cell and surf.affine is not None:
-        if surf.lattice is not None:
-            constraint = S.lattice_constraint(surf.affine, surf.lattice, max_deviation=md)
-        else:
-            constraint = S.voxel_constraint(surf.affine, max_deviation=md)
-    elif md is not None:
-        constraint = S.Constraint(max_deviation=md)
+    key = (md, bool(in_cell))
+    if key not in surf.constraints:
+        constraint = None
+        if in_cell and surf.affine is not None:
+            if surf.lattice is not None:
+                constraint = S.lattice_constraint(surf.affine, surf.lattice, max_deviation=md)
+            else:
+                constraint = S.voxel_constraint(surf.affine, max_deviation=md)
+        elif md is not None:
+            constraint = S.Constraint(max_deviation=md)
+        surf.constraints.clear()  # keep one: a max-deviation slider would pile them up
+        surf.constraints[key] = constraint
+    constraint = surf.constraints[key]
     fn = {"taubin": S.taubin, "laplacian": S.laplacian, "hc": S.hc_laplacian,
           "mean_curvature": S.mean_curvature_flow}[name]
     out = fn(surf.vertices, surf.faces, constraint=constraint, face_groups=surf.face_groups, **params)

@@ -237,3 +237,25 @@ def components(offsets, nbr):
                     tail += 1
         c += 1
     return label
+
+
+@njit(cache=True)
+def padded_rows(offsets, nbr, width):
+    """CSR → fixed-width rows (ELLPACK layout) for branch-free neighbour loops.
+
+    Returns ``(rows (n, width) uint32, inv_count (n,) float64)``: row ``i`` holds the first
+    ``width`` neighbours of ``i`` then the pad index ``n`` (a zero row appended to the position
+    array); ``inv_count[i]`` is ``1 / valence`` (0 for an empty row), negated for a row longer
+    than ``width`` (its neighbours must then be read from the CSR).
+    """
+    n = offsets.shape[0] - 1
+    rows = np.full((n, width), n, np.uint32)  # unsigned: no negative-index wraparound
+    inv_count = np.zeros(n, np.float64)
+    for i in range(n):
+        c = offsets[i + 1] - offsets[i]
+        for a in range(min(c, width)):
+            rows[i, a] = np.uint32(nbr[offsets[i] + a])
+        if c > 0:
+            inv_count[i] = 1.0 / c if c <= width else -1.0 / c
+    return rows, inv_count
+

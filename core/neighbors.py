@@ -14,6 +14,7 @@ Example
 >>> s.ring_offsets, s.ring            # 1-ring CSR
 >>> s.two_ring()                      # 2-ring CSR, built on first use
 >>> s.vf_offsets, s.vf                # vertex → incident faces CSR
+>>> s.padded(s.ring_offsets, s.ring)  # fixed-width rows for the smoothing hot loop, cached
 """
 from __future__ import annotations
 
@@ -69,6 +70,9 @@ class MeshStructure:
         self._face_ring: Optional[CSR] = None
         self._feature: dict = {}
         self._components: Optional[np.ndarray] = None
+        self._padded: dict = {}
+        self._groups_seen: Optional[tuple] = None
+        self._buffers: dict = {}
 
     @property
     def n_faces(self) -> int:
@@ -110,21 +114,71 @@ class MeshStructure:
 
         Returns ``(offsets, indices, kind)``; kind (N,) int8 is 0 free, 1 on a feature curve
         (its ring is the two curve neighbours), 2 fixed (curve end or corner: empty ring).
-        Cached per ``face_groups`` content.
+        Cached per ``face_groups`` content; the same array passed again is recognised by identity
+        and a sample of its entries (as :func:`structure` does for faces: after editing an array
+        in place, pass a new one).
         """
-        if face_groups is None:
-            g = np.zeros(self.n_faces, np.int64)
-        else:
-            g = np.ascontiguousarray(face_groups, dtype=np.int64).ravel()
-            if g.shape[0] != self.n_faces:
-                raise AnatomeshError(f"face_groups has {g.shape[0]} entries for {self.n_faces} faces")
-        key = hashlib.blake2b(g.tobytes(), digest_size=16).hexdigest()
+        key = self._groups_key(face_groups)
         if key not in self._feature:
+            if face_groups is None:
+                g = np.zeros(self.n_faces, np.int64)
+            else:
+                g = np.ascontiguousarray(face_groups, dtype=np.int64).ravel()
             self._feature[key] = _k.feature_rings(self.ring_offsets, self.ring, self.vf_offsets,
                                                   self.vf, g)
             self._feature.pop(("index", key), None)
         self._last_feature_key = key
         return self._feature[key]
+
+    def padded(self, offsets: np.ndarray, indices: np.ndarray, width: int = 8):
+        """A neighbourhood CSR of this structure (1-ring, feature ring, ...) as fixed-width rows
+        (ELLPACK layout): ``(rows (N, width) uint32, inv_count (N,) float64)``, cached.
+
+        Row ``i`` lists the neighbours of ``i`` padded with ``N`` (the index of a zero row
+        appended to the positions), so the smoothing loop has a fixed trip count and no
+        branch; ``inv_count`` is 1/valence, negative for the few rows longer than ``width``
+        (read from the CSR instead: 3 % of the vertices of a marching-cubes surface for 8).
+        """
+        key = (id(indices), int(width))
+        hit = self._padded.get(key)
+        if hit is not None and hit[0] is indices and hit[1] is offsets:
+            return hit[2]
+        out = _k.padded_rows(offsets, indices, np.int64(width))
+        self._padded[key] = (indices, offsets, out)
+        return out
+
+    def work_buffers(self, dtype=np.float64) -> Tuple[np.ndarray, np.ndarray]:
+        """Two (N + 1, 3) working arrays for smoothing passes, allocated once per dtype; row N
+        stays zero (the pad row of :meth:`padded`). Reused by every call on this structure, so
+        a filter must copy its result out (the filters do); not for concurrent use."""
+        dt = np.dtype(dtype)
+        if dt not in self._buffers:
+            self._buffers[dt] = (np.zeros((self.n_vertices + 1, 3), dt),
+                                 np.zeros((self.n_vertices + 1, 3), dt))
+        a, b = self._buffers[dt]
+        a[-1] = 0
+        b[-1] = 0
+        return a, b
+
+    def _groups_key(self, face_groups) -> str:
+        """Content key of a face-groups array; the full hash is skipped when the same array
+        object comes again with the same sampled rows (re-smoothing with unchanged groups)."""
+        if face_groups is None:
+            return "none"
+        arr = np.asarray(face_groups)
+        if arr.size != self.n_faces:
+            raise AnatomeshError(f"face_groups has {arr.size} entries for {self.n_faces} faces")
+        sample = _fingerprint(arr.reshape(-1))
+        last = self._groups_seen
+        if last is not None and last[0]() is face_groups and last[1] == sample:
+            return last[2]
+        g = np.ascontiguousarray(arr, dtype=np.int64).ravel()
+        key = hashlib.blake2b(g.tobytes(), digest_size=16).hexdigest()
+        try:
+            self._groups_seen = (weakref.ref(face_groups), sample, key)
+        except TypeError:  # a list: no identity to rely on
+            self._groups_seen = None
+        return key
 
     def feature_ring_index(self, face_groups: Optional[np.ndarray] = None) -> np.ndarray:
         """For each entry ``(i, j)`` of :meth:`feature_ring`: its position in the 1-ring CSR
@@ -147,13 +201,13 @@ _CACHE: "OrderedDict[tuple, tuple]" = OrderedDict()
 _CACHE_SIZE = 4
 
 
-def _fingerprint(faces: np.ndarray) -> str:
+def _fingerprint(a: np.ndarray) -> str:
     """Cheap content check: a hash of up to ~4000 evenly spaced rows plus the last one."""
-    step = max(1, faces.shape[0] // 4096)
+    step = max(1, a.shape[0] // 4096)
     h = hashlib.blake2b(digest_size=16)
-    h.update(np.ascontiguousarray(faces[::step]).tobytes())
-    if faces.shape[0]:
-        h.update(faces[-1].tobytes())
+    h.update(np.ascontiguousarray(a[::step]).tobytes())
+    if a.shape[0]:
+        h.update(np.ascontiguousarray(a[-1]).tobytes())
     return h.hexdigest()
 
 

@@ -561,6 +561,126 @@ def test_organ_default_on_totalsegmentator_map():
 
 
 # ---------------------------------------------------------------------------------------------
+# the fast path: padded rows, cached buffers, one numba call for all passes
+# ---------------------------------------------------------------------------------------------
+def spiky_bipyramid(k=13, seed=3):
+    """Two apexes of valence k (> the padded width 8) over a k-gon; noisy, closed."""
+    t = 2 * np.pi * np.arange(k) / k
+    ring = np.c_[5 * np.cos(t), 5 * np.sin(t), np.zeros(k)]
+    v = np.vstack([ring, [[0, 0, 4.0], [0, 0, -4.0]]])
+    v += np.random.default_rng(seed).normal(scale=0.3, size=v.shape)
+    f = [[i, (i + 1) % k, k] for i in range(k)] + [[(i + 1) % k, i, k + 1] for i in range(k)]
+    return v, np.array(f, np.int32)
+
+
+def test_padded_rows_hold_every_neighbour_or_defer_to_the_csr():
+    v, f = spiky_bipyramid()
+    s = N.MeshStructure(f, len(v))
+    rows, inv = s.padded(s.ring_offsets, s.ring, 8)
+    val = s.valence()
+    assert val.max() == 13 and rows.shape == (len(v), 8)
+    for i, r in enumerate(csr_rows(s.ring_offsets, s.ring)):
+        if len(r) <= 8:
+            assert list(rows[i, :len(r)]) == r and np.all(rows[i, len(r):] == len(v))
+            assert inv[i] == pytest.approx(1 / len(r))
+        else:
+            assert inv[i] == pytest.approx(-1 / len(r))  # read from the CSR
+    assert s.padded(s.ring_offsets, s.ring, 8) is s.padded(s.ring_offsets, s.ring, 8)
+
+
+def test_long_rows_oblique_box_and_cap_match_reference():
+    """Vertices with more neighbours than the padded width, an oblique box (smoothed in the
+    box's frame) and a max_deviation cap: same as the slow reference."""
+    v, f = spiky_bipyramid()
+    A3 = np.array([[0.9, 0.3, 0.0], [0.0, 1.1, 0.2], [0.1, 0.0, 0.7]])
+    cons = S.Constraint("box", frame=np.linalg.inv(A3), half=(0.5, 0.4, 0.6), max_deviation=0.45)
+    rings = ref_rings(f, len(v))
+
+    def c(i):
+        return v[i], A3, np.array([0.5, 0.4, 0.6]), "box", 0.45, v[i]
+
+    ref = np.array([ref_project(v[i], *c(i)) for i in range(len(v))])
+    for _ in range(6):
+        for factor in (0.6, -0.63):
+            ref = ref_umbrella(ref, rings, factor, cons=c)
+    out = S.taubin(v, f, iterations=6, lam=0.6, mu=-0.63, constraint=cons)
+    np.testing.assert_allclose(out, ref, atol=1e-9)
+    assert np.linalg.norm(out - v, axis=1).max() > 0.44  # the cap binds: the test can fail
+    plain = S.laplacian(v, f, iterations=3, lam=0.7)
+    ref = v.copy()
+    for _ in range(3):
+        ref = ref_umbrella(ref, rings, 0.7)
+    np.testing.assert_allclose(plain, ref, atol=1e-12)
+
+
+def test_cached_buffers_do_not_leak_between_calls_and_progress_changes_nothing():
+    v, f = noisy_sphere()
+    s = N.MeshStructure(f, len(v))
+    first = S.taubin(v, f, iterations=5, lam=0.5, structure=s)
+    keep = first.copy()
+    second = S.taubin(v, f, iterations=5, lam=0.6, mu=-0.64, structure=s)
+    np.testing.assert_array_equal(first, keep)  # the result is not a view of a reused buffer
+    np.testing.assert_array_equal(S.taubin(v, f, iterations=5, lam=0.5, structure=s), first)
+    assert not np.allclose(first, second)
+    seen = []
+    stepped = S.taubin(v, f, iterations=5, lam=0.6, mu=-0.64, structure=s,
+                       progress=lambda x, t: seen.append(x))
+    np.testing.assert_array_equal(stepped, second)
+    assert seen == pytest.approx([0.2, 0.4, 0.6, 0.8, 1.0])
+    f32 = S.taubin(v.astype(np.float32), f, iterations=5, lam=0.5, structure=s)
+    assert f32.dtype == np.float32
+    np.testing.assert_allclose(f32, first, atol=1e-4)  # float32 in, float64 inside
+
+
+def test_parallel_passes_on_a_real_map_match_a_vectorised_reference():
+    """The 41-label map (61k vertices: every thread gets a large share) with its lattice box
+    and junction curves: same as a numpy reference over the feature-ring CSR (itself checked
+    against a python reference above)."""
+    from anatomesh.core import load
+
+    ss = label_surfaces(load(shared("totalsegmentator", "example_seg.nii.gz")))
+    assert ss.n_vertices > 50000
+    v = ss.vertices.astype(np.float64)
+    groups = S.face_groups_of(ss.face_labels)
+    offsets, idx, _ = N.structure(ss.faces, len(v)).feature_ring(groups)
+    A3 = ss.affine[:3, :3]
+    centre = (ss.lattice - 0.5) @ A3.T + ss.affine[:3, 3]
+    count = np.diff(offsets)
+    has = count > 0
+    starts = offsets[:-1][has]
+
+    def ref_pass(p, factor):
+        sums = np.zeros_like(p)
+        sums[has] = np.add.reduceat(p[idx], starts, axis=0)
+        new = p.copy()
+        new[has] += factor * (sums[has] / count[has, None] - p[has])
+        u = np.clip(np.linalg.solve(A3, (new - centre).T).T / 0.45, -1, 1)
+        return centre + (u * 0.45) @ A3.T
+
+    ref = v
+    for _ in range(3):
+        for factor in (0.5, -0.53):
+            ref = ref_pass(ref, factor)
+    box = S.lattice_constraint(ss.affine, ss.lattice, half=0.45)
+    out = S.taubin(v, ss.faces, iterations=3, constraint=box, face_groups=groups)
+    np.testing.assert_allclose(out, ref, atol=1e-9)
+    assert np.abs(out - v).max() > 0.5  # vertices did move
+
+
+def test_face_groups_are_hashed_once_per_array_and_changes_are_seen():
+    ss = label_surfaces(three_labels())
+    s = N.structure(ss.faces, ss.n_vertices)
+    groups = S.face_groups_of(ss.face_labels)
+    a = s.feature_ring(groups)
+    assert s.feature_ring(groups) is a
+    other = np.arange(len(groups))  # every face its own group: every vertex is a corner
+    assert np.all(s.feature_ring(other)[2] == 2)
+    other[:] = 0  # edited in place (sampled rows change): seen
+    assert np.array_equal(s.feature_ring(other)[2], s.feature_ring(None)[2])
+    assert s.feature_ring(groups.copy()) is a  # same content, same rings
+
+
+# ---------------------------------------------------------------------------------------------
 # input errors are one-line AnatomeshErrors
 # ---------------------------------------------------------------------------------------------
 def test_bad_inputs_raise_anatomesh_errors():
