@@ -95,6 +95,15 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--lod", type=int, metavar="N",
                    help="also write N GLB levels of detail, <scan>_lod0.glb (finest) .. _lod{N-1}.glb, "
                         "each half the faces of the one before, from one progressive decimation run")
+    m.add_argument("--fuse", action="append", metavar="LABELS",
+                   help="print fix: merge these labels (comma list of values/names) into one solid "
+                        "before extraction; repeat for several groups")
+    m.add_argument("--thicken", action="store_true", default=None,
+                   help="print fix: grow parts thinner than the minimum wall (--min-wall or the "
+                        "profile's) in the label map before extraction")
+    m.add_argument("--clearance", type=float, metavar="MM",
+                   help="print fix: pull touching parts apart by MM along their shared interfaces, "
+                        "so separately printed parts fit together")
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
@@ -138,7 +147,7 @@ def cmd_inspect(args) -> int:
 _RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
                  "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
                  "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
-                 "profile", "min_wall", "min_gap", "report", "overwrite", "lod")
+                 "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance")
 
 
 def recipe_from_args(args):
@@ -161,6 +170,8 @@ def recipe_from_args(args):
         recipe.labels = _split(args.labels) if args.labels.strip().lower() != "all" else "all"
     if args.format is not None:
         recipe.formats = _formats(args.format)
+    if args.fuse:
+        recipe.fuse = [_split(g) for g in args.fuse]
     targets = ("decimate", "target_faces", "max_error")
     if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
         for t in targets:

@@ -31,7 +31,7 @@ from .inspect import describe
 from .io import load
 from .mesh import Mesh
 from .progress import Progress, report, sub
-from .volume import Volume
+from .volume import LabelInfo, Volume
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # core.smooth.DEFAULT: Taubin in the voxel cell, volumes kept
@@ -64,6 +64,11 @@ class Recipe:
     one voxel, the largest spacing), so a target the shapes cannot reach stops short with a warning
     instead of ruining small organs. ``check``: run the print checks (:func:`~anatomesh.core.printcheck.
     check_parts`) with ``profile`` ("fdm", "resin"), ``min_wall``/``min_gap`` (mm) overriding it.
+    Print fixes (label maps; each reported under ``fixes``): ``fuse`` — groups of labels (values
+    or names) merged into one solid each before extraction; ``thicken`` — grow parts thinner than
+    the minimum wall (``min_wall`` or the profile's) in the label map before extraction;
+    ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
+    so separately printed parts fit together (:mod:`anatomesh.core.printfix`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
     ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
@@ -96,6 +101,9 @@ class Recipe:
     profile: str = "fdm"
     min_wall: Optional[float] = None
     min_gap: Optional[float] = None
+    fuse: List[List[Union[int, str]]] = field(default_factory=list)
+    thicken: bool = False
+    clearance: Optional[float] = None
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
@@ -133,6 +141,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     volume = load(recipe.input, series=recipe.series, volume_index=recipe.volume_index,
                   labels=recipe.label_table, space=recipe.space, progress=sub(progress, 0.0, 0.2))
     timings = {"read_s": time.perf_counter() - t0}
+    volume, fixes = fix_volume(volume, recipe)
 
     t1 = time.perf_counter()
     report(progress, 0.2, "extracting surfaces")
@@ -151,6 +160,11 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     timings["decimate_s"] = time.perf_counter() - t3
     surface_set = final if hasattr(final, "shells") else None
     surfaces = final.shells() if surface_set is not None else list(final)
+    if recipe.clearance is not None:
+        from .printfix import separate_parts
+
+        surfaces, info = separate_parts(final, recipe.clearance)
+        fixes.append({"fix": "clearance", **info})
     entries = [_clean(m, recipe) for m in surfaces]
 
     report(progress, 0.7, "writing")
@@ -189,6 +203,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                        decimation=decimation, scene_files=scene_files, print_check=print_check)
     if lods:
         rep["lod"] = lods
+    if fixes:
+        rep["fixes"] = fixes
     rep["warnings"] = list(volume.warnings) + list(getattr(raw, "warnings", [])) + \
         list(smoothing.get("warnings") or []) + _decimation_warnings(decimation, recipe)
     save_report(rep, recipe, report_path, recipe_path)
@@ -245,7 +261,9 @@ def check_recipe(recipe: Recipe) -> None:
     if recipe.target_faces is not None and (int(recipe.target_faces) != recipe.target_faces
                                             or recipe.target_faces < 4):
         raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
-    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance"):
+    if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
+        raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
+    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance"):
         value = getattr(recipe, name)
         if value is not None and not value > 0:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
@@ -264,6 +282,48 @@ def _blender():
 
 
 # ---------------------------------------------------------------------------------------------
+def fix_volume(volume: Volume, recipe: Recipe):
+    """Apply the label-map print fixes of ``recipe`` (fuse, thicken) before extraction.
+
+    Returns ``(volume, fixes)``: a fused label keeps the first label's value and colour and is
+    named after all of them ("liver+spleen"); ``fixes`` lists what each fix did."""
+    from dataclasses import replace
+
+    from .printfix import fuse_labels, thicken_labels
+
+    fixes: List[Dict] = []
+    if not (recipe.fuse or recipe.thicken or recipe.clearance is not None):
+        return volume, fixes
+    if not volume.is_label_map:
+        raise AnatomeshError("--fuse, --thicken and --clearance work on label maps; this is a scalar "
+                             "scan", volume.meta.get("source"))
+    table = dict(volume.labels or {})
+    wanted = select_labels(volume, recipe.labels)  # named before fusing renames them
+    for group in recipe.fuse:
+        values = select_labels(volume, group)
+        if not values or len(values) < 2:
+            raise AnatomeshError(f"--fuse needs two or more labels in a group, got {group!r}")
+        volume, info = fuse_labels(volume, values)
+        names = [table[v].name if v in table else str(v) for v in values]
+        first = table.get(values[0], LabelInfo(values[0], str(values[0])))
+        table[values[0]] = replace(first, name="+".join(names))
+        for v in values[1:]:
+            table.pop(v, None)
+        volume = replace(volume, labels=table)
+        fixes.append({"fix": "fuse", **info, "name": "+".join(names)})
+        if wanted is not None:
+            wanted = list(dict.fromkeys(values[0] if w in values else w for w in wanted))
+    if wanted is not None:
+        recipe.labels = wanted
+    if recipe.thicken:
+        from .printcheck import resolve_profile
+
+        wall = resolve_profile(recipe.profile, recipe.min_wall)["min_wall"]
+        volume, info = thicken_labels(volume, wall, labels=wanted)
+        fixes.append({"fix": "thicken", **info})
+    return volume, fixes
+
+
 def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None):
     """A SurfaceSet (label map: conforming shells) or a list of isosurface Meshes (scalar scan)."""
     from .extract import isosurfaces, label_surfaces

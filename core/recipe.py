@@ -49,7 +49,8 @@ SECTIONS: Dict[str, Dict[str, str]] = {
                   "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
                   "staircase": "staircase"},
     "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
-    "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap"},
+    "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
+              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance"},
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
@@ -60,7 +61,8 @@ _NOTES = {
     "smoothing": "method: organ, light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
                  "normal_median, none",
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
-    "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it",
+    "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
+             "(groups of labels), thicken, clearance_mm",
     "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
 }
 #: Recipe fields holding paths (resolved against the recipe's folder)
@@ -95,6 +97,10 @@ _TYPES = {
     "profile": (lambda v: isinstance(v, str), "\"fdm\" or \"resin\""),
     "min_wall": (lambda v: _is_number(v), _NUMBER),
     "min_gap": (lambda v: _is_number(v), _NUMBER),
+    "fuse": (lambda v: isinstance(v, list) and all(isinstance(g, list) and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups, e.g. [[\"liver\", \"spleen\"]]"),
+    "thicken": (lambda v: isinstance(v, bool), "true or false"),
+    "clearance": (lambda v: _is_number(v), _NUMBER),
     "out_dir": (lambda v: isinstance(v, str), "a folder path"),
     "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
     "report": (lambda v: isinstance(v, str), "a file path"),
@@ -105,7 +111,7 @@ _TYPES = {
                     "[width, height] in pixels"),
 }
 _FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
-                 "max_error", "min_wall", "min_gap"}
+                 "max_error", "min_wall", "min_gap", "clearance"}
 
 
 def _is_int(v) -> bool:
