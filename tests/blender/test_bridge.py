@@ -5,6 +5,8 @@ import bpy
 import numpy as np
 import pytest
 
+from anatomesh.core._export_common import srgb_to_linear
+
 
 def torus(n=24, m=16, R=40.0, r=10.0):
     u = np.linspace(0, 2 * np.pi, n, endpoint=False)
@@ -109,7 +111,10 @@ def test_units_collections_and_materials(scn, empty_scene):
     assert obj.name == "liver" and obj["anatomesh_value"] == 5 and obj["anatomesh_alpha"] == 1.0
     mat = obj.data.materials[0]
     bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    assert tuple(bsdf.inputs["Base Color"].default_value)[:3] == pytest.approx((0.5, 0.25, 0.1))
+    # the label colour is sRGB; Blender's shader sockets hold linear values
+    linear = tuple(srgb_to_linear(np.array([0.5, 0.25, 0.1])))
+    assert tuple(bsdf.inputs["Base Color"].default_value)[:3] == pytest.approx(linear, abs=1e-6)
+    assert linear[0] == pytest.approx(0.2140, abs=1e-4)
     assert bsdf.inputs["Alpha"].is_linked  # opacity comes from the object property
     assert mat.surface_render_method == "BLENDED"
     attrs = {n.attribute_name for n in mat.node_tree.nodes if n.type == "ATTRIBUTE"}
