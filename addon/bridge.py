@@ -42,11 +42,20 @@ def new_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.types.Me
         With N vertices, M triangles and the edges Blender derived from them; not validated
         (the arrays come from core, whose invariants are tested there).
     """
+    me = bpy.data.meshes.new(name)
+    set_geometry(me, vertices, faces)
+    return me
+
+
+def set_geometry(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Replace a mesh's geometry with triangles in place through the attribute API (materials
+    and the datablock stay): ``vertices`` (N, 3) mm, ``faces`` (M, 3) int."""
     v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
     f = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
     if f.size and (int(f.min()) < 0 or int(f.max()) >= len(v)):
         raise ValueError(f"face indices out of range for {len(v)} vertices")
-    me = bpy.data.meshes.new(name)
+    if len(me.vertices):
+        me.clear_geometry()
     me.vertices.add(len(v))
     me.loops.add(f.size)
     me.polygons.add(len(f))
@@ -56,7 +65,6 @@ def new_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.types.Me
         me.attributes[".corner_vert"].data.foreach_set("value", f.ravel())
         me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
     me.update(calc_edges=True)
-    return me
 
 
 def set_positions(mesh: bpy.types.Mesh, vertices: np.ndarray) -> None:

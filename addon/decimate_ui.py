@@ -151,22 +151,6 @@ def _copy_numbers(vid: np.ndarray) -> np.ndarray:
     return out
 
 
-def set_geometry(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Replace a mesh's geometry with triangles in place (materials and the datablock stay)."""
-    v = np.ascontiguousarray(vertices, np.float32).reshape(-1, 3)
-    f = np.ascontiguousarray(faces, np.int32).reshape(-1, 3)
-    me.clear_geometry()
-    me.vertices.add(len(v))
-    me.loops.add(f.size)
-    me.polygons.add(len(f))
-    if len(v):
-        me.attributes["position"].data.foreach_set("vector", v.ravel())
-    if len(f):
-        me.attributes[".corner_vert"].data.foreach_set("value", f.ravel())
-        me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
-    me.update(calc_edges=True)
-
-
 # ---------------------------------------------------------------------------------------------
 # apply and preview
 # ---------------------------------------------------------------------------------------------
@@ -228,7 +212,7 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
 
 def _write(obj, vertices, faces, vertex_ids) -> None:
     me = obj.data
-    set_geometry(me, vertices, faces)
+    bridge.set_geometry(me, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
     if vertex_ids is not None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, vertex_ids, "int")
