@@ -368,6 +368,20 @@ def test_chest_ct_integer_level_no_degenerate_faces(chest_ct, level):
         assert signed_volume(capped.vertices, capped.faces) > 0
 
 
+@pytest.mark.parametrize("level", [-500, 300], ids=["skin", "bone"])
+def test_cap_changes_nothing_away_from_the_border(chest_ct, level):
+    """The vertex writer has a copy specialised for capping (border checks) and one without:
+    on a surface that never reaches the border both must give the very same bits."""
+    block = chest_ct.data[150:230, 180:300, 30:110]
+    vals = np.pad(block, 1, constant_values=-1024)  # air all around: nothing touches the border
+    open_mesh = isosurface(vals, level, affine=chest_ct.affine)
+    capped = isosurface(vals, level, affine=chest_ct.affine, cap=True)
+    assert open_mesh.n_faces > 4_000
+    np.testing.assert_array_equal(open_mesh.vertices, capped.vertices)
+    np.testing.assert_array_equal(open_mesh.normals, capped.normals)
+    np.testing.assert_array_equal(open_mesh.faces, capped.faces)
+
+
 # ---------------------------------------------------------------------------------------------
 # inputs
 # ---------------------------------------------------------------------------------------------
