@@ -436,12 +436,14 @@ def _point_cell(v, f) -> float:
 
 
 def thin_regions(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndarray,
-                 min_wall: float, min_area_mm2: Optional[float] = None) -> List[Dict]:
+                 min_wall: float, min_area_mm2: Optional[float] = None,
+                 min_vertices: int = 3) -> List[Dict]:
     """Connected regions of vertices thinner than ``min_wall`` mm (linked by mesh edges).
 
     Regions smaller than ``min_area_mm2`` (default ``min_wall²``: less than one printed line by
-    one printed line) are isolated spots — a sharp corner or staircase step where tangent
-    estimates vanish — and are left out.
+    one printed line) or of fewer than ``min_vertices`` vertices are isolated spots — a sharp
+    corner, a crease where smoothed organs meet, or a staircase step where tangent estimates
+    vanish — and are left out (on a coarse mesh one vertex alone can stand for ~10 mm²).
 
     Returns ``[{"vertices": index array, "location": centroid mm, "area_mm2", "min_mm",
     "median_mm" (area-weighted), "min_location"}]``, largest area first. Thin branches (vessels,
@@ -466,7 +468,7 @@ def thin_regions(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndarray,
     for c in range(uniq.size):
         vi = tv[order[bounds[c]:bounds[c + 1]]]
         a = float(area[vi].sum())
-        if a < min_area:
+        if a < min_area or vi.size < min_vertices:
             continue
         k = vi[np.argmin(t[vi])]
         srt = vi[np.argsort(t[vi])]

@@ -344,3 +344,20 @@ def test_remove_tiny_shells():
     assert out.n_faces == len(f) and out.n_vertices == len(v) and out.name == "x"
     assert out.meta["removed_shells"] == [pytest.approx(0.125)]
     assert topology(out.vertices, out.faces).components == 1
+
+
+def test_thin_spots_of_one_or_two_vertices_are_not_regions():
+    """On a coarse mesh one vertex stands for many mm²: a lone thin vertex or a thin edge (a
+    crease where smoothed organs meet) is a spot, three linked thin vertices (a face) a region."""
+    from anatomesh.core.printcheck import thin_regions
+
+    v, f = icosphere(1, 10.0)  # 42 vertices: ~30 mm² each
+    t = np.full(len(v), 5.0)
+    a, b, c = (int(x) for x in f[0])
+    t[a] = 0.1
+    assert thin_regions(v, f, t, 0.8) == []
+    t[b] = 0.2
+    assert thin_regions(v, f, t, 0.8) == []
+    t[c] = 0.3
+    (r,) = thin_regions(v, f, t, 0.8)
+    assert sorted(r["vertices"].tolist()) == sorted([a, b, c]) and r["min_mm"] == 0.1
