@@ -88,7 +88,8 @@ def problems_of(report: Dict) -> List[Dict]:
             rows.append(dict(part=name, kind="tiny shell", value=float(s["volume_mm3"]), unit="mm³",
                              location=s["location"]))
         for r in p.get("thin_regions", []):
-            rows.append(dict(part=name, kind="thin wall", value=float(r["min_mm"]), unit="mm",
+            kind = "thin wall (at a seam)" if r.get("seam_backed") else "thin wall"
+            rows.append(dict(part=name, kind=kind, value=float(r["min_mm"]), unit="mm",
                              location=r["min_location"]))
     for c in report.get("intersections", []):
         rows.append(dict(part=c["a"], other=c["b"], kind="parts cross", value=float(c["faces_a"]),

@@ -694,10 +694,11 @@ def check_parts(meshes: Sequence[Mesh], profile="fdm", min_wall: Optional[float]
     grids = []
     out_parts = []
     sp = sub(progress, 0.15, 0.8)
+    near_seam = seam_neighbourhoods(parts)
     for i, ((v, f), name) in enumerate(zip(parts, names)):
         report(sp, i / max(len(parts), 1), f"wall thickness {name}")
         grids.append(TriangleGrid(v, f) if len(f) else None)
-        out_parts.append(_check_one(v, f, name, grids[-1], prof, self_pairs[i]))
+        out_parts.append(_check_one(v, f, name, grids[-1], prof, self_pairs[i], near_seam[i]))
     gaps = part_gaps(meshes, GAP_REPORT_MM, prof["min_gap"], grids=grids,
                      progress=sub(progress, 0.8, 1.0))
     inter = []
@@ -728,8 +729,34 @@ def check_parts(meshes: Sequence[Mesh], profile="fdm", min_wall: Optional[float]
             "passed": bool(passed)}
 
 
-def _check_one(v, f, name, grid, prof, self_pairs) -> Dict:
-    """Checks of one part (the per-part entry of the report)."""
+def seam_neighbourhoods(parts: Sequence[Tuple[np.ndarray, np.ndarray]]) -> List[np.ndarray]:
+    """Per part a bool mask (N,) of the vertices on a seam — a position another part has too —
+    or sharing a face with one: where touching parts printed together back each other up."""
+    if not parts:
+        return []
+    sizes = [len(v) for v, _ in parts]
+    wid = weld_ids(np.concatenate([v for v, _ in parts]))
+    owner = np.repeat(np.arange(len(parts)), sizes)
+    users = np.bincount(np.unique(np.stack([wid, owner], 1), axis=0)[:, 0], minlength=int(wid.max()) + 1)
+    shared = users[wid] > 1
+    out, start = [], 0
+    for (v, f), n in zip(parts, sizes):
+        seam = shared[start:start + n]
+        near = seam.copy()
+        if len(f):
+            near[f[seam[f].any(axis=1)].ravel()] = True
+        out.append(near)
+        start += n
+    return out
+
+
+def _check_one(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
+    """Checks of one part (the per-part entry of the report).
+
+    Thin regions lying wholly on or next to a seam with another part (``near_seam``) — the
+    creases where smoothed neighbours meet — are backed by that neighbour when the parts print
+    together: they are listed with ``seam_backed`` but do not fail the part (separate the parts,
+    e.g. ``--clearance``, and they count)."""
     if f.shape[0] == 0:
         return {"name": name, "closed": False, "manifold": True, "oriented": True, "faces": 0,
                 "self_intersections": 0, "degenerate_faces": 0, "sliver_faces": 0,
@@ -742,6 +769,9 @@ def _check_one(v, f, name, grid, prof, self_pairs) -> Dict:
     thick = wall_thickness(v, f, grid=grid, max_thickness=max(_THICK_CAP_MM, 5 * prof["min_wall"]),
                            oriented=bool(topo.closed and topo.manifold and topo.oriented))
     regions = thin_regions(v, f, thick, prof["min_wall"])
+    for r in regions:
+        r["seam_backed"] = bool(near_seam is not None and near_seam[r["vertices"]].all())
+    free = [r for r in regions if not r["seam_backed"]]
     n_self = int(np.unique(self_pairs.ravel()).size)
     entry = {
         "name": name, "faces": int(f.shape[0]), "closed": bool(topo.closed),
@@ -751,17 +781,19 @@ def _check_one(v, f, name, grid, prof, self_pairs) -> Dict:
         "sliver_faces": int(sliv.size),
         "tiny_shells": [{"volume_mm3": round(s["volume_mm3"], 4), "faces": int(s["faces"].size),
                          "location": s["location"]} for s in shells],
-        "min_wall_mm": _round(robust_min_wall(thick, regions, prof["min_wall"])),
-        "thin_area_mm2": round(float(sum(r["area_mm2"] for r in regions)), 3),
+        "min_wall_mm": _round(robust_min_wall(thick, free, prof["min_wall"])),
+        "thin_area_mm2": round(float(sum(r["area_mm2"] for r in free)), 3),
+        "seam_backed_thin_area_mm2": round(float(sum(r["area_mm2"] for r in regions if r["seam_backed"])), 3),
         "thin_regions": [{"location": r["location"], "area_mm2": round(r["area_mm2"], 3),
                           "min_mm": round(r["min_mm"], 3), "median_mm": round(r["median_mm"], 3),
-                          "min_location": r["min_location"], "vertices": int(r["vertices"].size)}
-                         for r in regions[:_MAX_REGIONS]],
-        "thin_region_count": len(regions),
+                          "min_location": r["min_location"], "vertices": int(r["vertices"].size),
+                          "seam_backed": r["seam_backed"]}
+                         for r in (free + [r for r in regions if r["seam_backed"]])[:_MAX_REGIONS]],
+        "thin_region_count": len(free),
         "part_intersections": 0,
     }
     entry["passed"] = bool(topo.closed and topo.manifold and topo.oriented and n_self == 0
-                           and deg.size == 0 and not shells and not regions)
+                           and deg.size == 0 and not shells and not free)
     return entry
 
 

@@ -361,3 +361,25 @@ def test_thin_spots_of_one_or_two_vertices_are_not_regions():
     t[c] = 0.3
     (r,) = thin_regions(v, f, t, 0.8)
     assert sorted(r["vertices"].tolist()) == sorted([a, b, c]) and r["min_mm"] == 0.1
+
+
+def test_creases_at_seams_do_not_fail_parts_printed_together():
+    """Smoothed 61-label map: thin spots wholly on/next to a seam with a neighbour (creases where
+    organs meet) are listed as seam-backed and do not fail the part; free thin regions (ribs,
+    cartilage) still do; once parts no longer share seams every thin region counts."""
+    from anatomesh.core import label_surfaces, load
+    from anatomesh.core.smooth import smooth_surfaces
+
+    vol = load(shared("totalsegmentator", "example_seg_fast_force_split.nii.gz"))
+    sm, _ = smooth_surfaces(label_surfaces(vol), "organ", distances=False)
+    shells = sm.shells()
+    rep = pc.check_parts(shells, "fdm")
+    parts = {p["name"]: p for p in rep["parts"]}
+    backed = [p for p in rep["parts"] if p["passed"] and p["seam_backed_thin_area_mm2"] > 0]
+    assert len(backed) >= 10  # organs with creases only: pass
+    assert all(r["seam_backed"] for p in backed for r in p["thin_regions"])
+    assert not parts["costal_cartilages"]["passed"] and parts["costal_cartilages"]["thin_region_count"] > 0
+    # a backed part checked alone: its creases count
+    name = backed[0]["name"]
+    alone = pc.check_parts([m for m in shells if m.name == name], "fdm")["parts"][0]
+    assert not alone["passed"] and alone["thin_area_mm2"] == pytest.approx(backed[0]["seam_backed_thin_area_mm2"])
