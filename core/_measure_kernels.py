@@ -5,6 +5,8 @@ import math
 
 from numba import njit
 
+from ._search_kernels import other_corners
+
 
 # ---------------------------------------------------------------------------------------------
 # curvature (Meyer, Desbrun, Schröder & Barr 2003) and triangle angles
@@ -38,12 +40,7 @@ def vertex_curvatures(v, faces, vf_offsets, vf, H, K, A):
         angles = 0.0
         for t in range(vf_offsets[i], vf_offsets[i + 1]):
             f = vf[t]
-            if faces[f, 0] == i:
-                j, k = faces[f, 1], faces[f, 2]
-            elif faces[f, 1] == i:
-                j, k = faces[f, 2], faces[f, 0]
-            else:
-                j, k = faces[f, 0], faces[f, 1]
+            j, k = other_corners(faces, f, i)  # the face reads (i, j, k)
             eij = (v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], v[j, 2] - v[i, 2])
             eik = (v[k, 0] - v[i, 0], v[k, 1] - v[i, 1], v[k, 2] - v[i, 2])
             ejk = (v[k, 0] - v[j, 0], v[k, 1] - v[j, 1], v[k, 2] - v[j, 2])

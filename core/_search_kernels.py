@@ -1,4 +1,4 @@
-"""Small numba search helpers shared by kernel modules."""
+"""Small numba helpers shared by kernel modules."""
 from numba import njit
 
 
@@ -14,3 +14,14 @@ def lower_bound(a, x):
         else:
             hi = mid
     return lo
+
+
+@njit(cache=True)
+def other_corners(faces, f, i):
+    """The corners ``(j, k)`` of face ``f`` after its corner ``i``, in winding order, so the
+    face reads (i, j, k)."""
+    if faces[f, 0] == i:
+        return faces[f, 1], faces[f, 2]
+    if faces[f, 1] == i:
+        return faces[f, 2], faces[f, 0]
+    return faces[f, 0], faces[f, 1]

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._search_kernels import lower_bound
+from ._search_kernels import lower_bound, other_corners
 
 #: fast-math without "no NaN / no Inf" assumptions (an infinite radius means "no cap")
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -259,13 +259,7 @@ def cotan_weights(pos, faces, offsets, nbr, vf_offsets, vf, out):
             out[a] = 0.0
         for t in range(vf_offsets[i], vf_offsets[i + 1]):
             f = vf[t]
-            # rotate so the face reads (i, j, k)
-            if faces[f, 0] == i:
-                j, k = faces[f, 1], faces[f, 2]
-            elif faces[f, 1] == i:
-                j, k = faces[f, 2], faces[f, 0]
-            else:
-                j, k = faces[f, 0], faces[f, 1]
+            j, k = other_corners(faces, f, i)  # the face reads (i, j, k)
             # angle at k, opposite edge (i, j)
             ck = _cot(pos[i, 0] - pos[k, 0], pos[i, 1] - pos[k, 1], pos[i, 2] - pos[k, 2],
                       pos[j, 0] - pos[k, 0], pos[j, 1] - pos[k, 1], pos[j, 2] - pos[k, 2])
