@@ -158,10 +158,10 @@ def smooth_vertices(surf: ScanSurface, method: str, iterations: int, strength: f
             "MEAN_CURVATURE": "mean_curvature"}[method]
     lam = float(min(max(strength, 0.01), 0.95))
     params = {"iterations": int(iterations)}
-    if name == "taubin":
-        params.update(lam=lam, mu=-min(1.0, lam + 0.03))
+    if name == "taubin":  # float32: the precision Blender keeps positions in, ~2x faster
+        params.update(lam=lam, mu=-min(1.0, lam + 0.03), precision="float32")
     elif name == "laplacian":
-        params.update(lam=lam)
+        params.update(lam=lam, precision="float32")
     elif name == "mean_curvature":
         params.update(step=lam)
     md = float(max_deviation) if max_deviation and max_deviation > 0 else None

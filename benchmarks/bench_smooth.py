@@ -100,7 +100,7 @@ def bench_ours(v, f, affine, repeat):
 def live_taubin(vertices, faces, affine, lattice=None, face_groups=None):
     """One live-slider re-smooth as ``addon/live.py`` (smooth_vertices) does it: a new λ per
     call, Taubin 20 iterations, the voxel-cell box (built once, kept with the surface),
-    structure cached by the faces array, float32 out."""
+    structure cached by the faces array, float32 arithmetic and output."""
     lams = iter(np.tile(np.linspace(0.45, 0.6, 16), 1000))
     if lattice is not None:
         c = S.lattice_constraint(affine, lattice)
@@ -110,7 +110,7 @@ def live_taubin(vertices, faces, affine, lattice=None, face_groups=None):
     def run():
         lam = float(next(lams))
         out = S.taubin(vertices, faces, iterations=20, lam=lam, mu=-min(1.0, lam + 0.03),
-                       constraint=c, face_groups=face_groups)
+                       constraint=c, face_groups=face_groups, precision="float32")
         return np.asarray(out, np.float32)
 
     run()

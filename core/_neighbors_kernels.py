@@ -240,22 +240,71 @@ def components(offsets, nbr):
 
 
 @njit(cache=True)
-def padded_rows(offsets, nbr, width):
-    """CSR → fixed-width rows (ELLPACK layout) for branch-free neighbour loops.
+def _chain_length(c, width, ext_width):
+    """Helper columns a row of ``c > width`` neighbours needs (see :func:`padded_columns`)."""
+    r = c - (width - 1)
+    k = 1
+    while r > ext_width:
+        r -= ext_width - 1
+        k += 1
+    return k
 
-    Returns ``(rows (n, width) uint32, inv_count (n,) float64)``: row ``i`` holds the first
-    ``width`` neighbours of ``i`` then the pad index ``n`` (a zero row appended to the position
-    array); ``inv_count[i]`` is ``1 / valence`` (0 for an empty row), negated for a row longer
-    than ``width`` (its neighbours must then be read from the CSR).
+
+@njit(cache=True)
+def padded_columns(offsets, nbr, width, ext_width):
+    """CSR → fixed-width columns (column-major ELLPACK) for branch-free SIMD neighbour loops.
+
+    Returns ``(cols (width, n) uint32, inv_count (n,) float64, ext (ext_width, H) uint32,
+    level_at (levels + 1,) int64)``. Column ``i`` of ``cols`` holds the neighbours of ``i`` then
+    the pad index ``n`` (a zero column appended to the positions); ``inv_count[i]`` is
+    ``1 / valence`` (0 for none). A row longer than ``width`` keeps ``width − 1`` neighbours
+    and, last, the index ``n + 1 + h`` of a *helper column* ``h`` whose value is the sum of the
+    rest: ``ext[:, h]`` lists them (padded with ``n``), chaining to a further helper when more
+    than ``ext_width`` remain. Helpers are numbered by height (0: the end of a chain), so summing
+    the levels ``level_at[l]:level_at[l + 1]`` in order fills each before it is read.
     """
     n = offsets.shape[0] - 1
-    rows = np.full((n, width), n, np.uint32)  # unsigned: no negative-index wraparound
-    inv_count = np.zeros(n, np.float64)
+    levels = 0
     for i in range(n):
         c = offsets[i + 1] - offsets[i]
-        for a in range(min(c, width)):
-            rows[i, a] = np.uint32(nbr[offsets[i] + a])
+        if c > width:
+            levels = max(levels, _chain_length(c, width, ext_width))
+    level_at = np.zeros(levels + 1, np.int64)
+    for i in range(n):
+        c = offsets[i + 1] - offsets[i]
+        if c > width:
+            for h in range(_chain_length(c, width, ext_width)):
+                level_at[h + 1] += 1
+    for h in range(levels):
+        level_at[h + 1] += level_at[h]
+    fill = level_at[:-1].copy()
+    cols = np.full((width, n), n, np.uint32)  # unsigned: no negative-index wraparound
+    ext = np.full((ext_width, level_at[-1]), n, np.uint32)
+    inv_count = np.zeros(n, np.float64)
+    for i in range(n):
+        start, c = offsets[i], offsets[i + 1] - offsets[i]
         if c > 0:
-            inv_count[i] = 1.0 / c if c <= width else -1.0 / c
-    return rows, inv_count
-
+            inv_count[i] = 1.0 / c
+        if c <= width:
+            for a in range(c):
+                cols[a, i] = np.uint32(nbr[start + a])
+            continue
+        for a in range(width - 1):
+            cols[a, i] = np.uint32(nbr[start + a])
+        k = _chain_length(c, width, ext_width)
+        h = fill[k - 1]
+        fill[k - 1] += 1
+        cols[width - 1, i] = np.uint32(n + 1 + h)
+        at, rest = start + width - 1, c - (width - 1)
+        for depth in range(k - 1, -1, -1):  # height of helper h
+            take = rest if depth == 0 else ext_width - 1
+            for a in range(take):
+                ext[a, h] = np.uint32(nbr[at + a])
+            at += take
+            rest -= take
+            if depth > 0:
+                nxt = fill[depth - 1]
+                fill[depth - 1] += 1
+                ext[ext_width - 1, h] = np.uint32(n + 1 + nxt)
+                h = nxt
+    return cols, inv_count, ext, level_at

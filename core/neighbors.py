@@ -14,14 +14,14 @@ Example
 >>> s.ring_offsets, s.ring            # 1-ring CSR
 >>> s.two_ring()                      # 2-ring CSR, built on first use
 >>> s.vf_offsets, s.vf                # vertex → incident faces CSR
->>> s.padded(s.ring_offsets, s.ring)  # fixed-width rows for the smoothing hot loop, cached
+>>> s.padded(s.ring_offsets, s.ring)  # fixed-width neighbour columns for the smoothing hot loop, cached
 """
 from __future__ import annotations
 
 import hashlib
 import weakref
 from collections import OrderedDict
-from typing import Optional, Tuple
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -45,6 +45,28 @@ def check_faces(faces: np.ndarray, n_vertices: int) -> np.ndarray:
         raise AnatomeshError(f"faces refer to vertex {bad} but the mesh has {n_vertices} vertices: "
                              "pass the matching vertex array")
     return f
+
+
+class PaddedRing(NamedTuple):
+    """A neighbourhood as fixed-width columns (column-major ELLPACK), :meth:`MeshStructure.padded`.
+
+    Column ``i`` of ``cols`` lists the neighbours of vertex ``i`` padded with ``N`` (the index of
+    a zero column appended to the positions), so the smoothing loop has a fixed trip count, no
+    branch and contiguous index loads for SIMD gathers over consecutive vertices. The few rows
+    with more neighbours than the width (3 % of a marching-cubes surface's vertices for 8) end
+    in a *helper column* ``N + 1 + h`` holding the sum of their other neighbours, listed in
+    ``ext[:, h]`` and summed level by level before each pass (see
+    ``_neighbors_kernels.padded_columns``): the positions then have ``N + 1 + H`` columns.
+    """
+    cols: np.ndarray       #: (width, N) uint32
+    inv_count: np.ndarray  #: (N,) float: 1 / valence (0: no neighbour)
+    ext: np.ndarray        #: (ext_width, H) uint32: what each helper column sums
+    level_at: np.ndarray   #: (levels + 1,) int64: helper levels, to sum in this order
+
+    @property
+    def n_columns(self) -> int:
+        """Columns of a position array for these rows: vertices, the zero pad, the helpers."""
+        return self.cols.shape[1] + 1 + self.ext.shape[1]
 
 
 class MeshStructure:
@@ -130,35 +152,37 @@ class MeshStructure:
         self._last_feature_key = key
         return self._feature[key]
 
-    def padded(self, offsets: np.ndarray, indices: np.ndarray, width: int = 8):
-        """A neighbourhood CSR of this structure (1-ring, feature ring, ...) as fixed-width rows
-        (ELLPACK layout): ``(rows (N, width) uint32, inv_count (N,) float64)``, cached.
-
-        Row ``i`` lists the neighbours of ``i`` padded with ``N`` (the index of a zero row
-        appended to the positions), so the smoothing loop has a fixed trip count and no
-        branch; ``inv_count`` is 1/valence, negative for the few rows longer than ``width``
-        (read from the CSR instead: 3 % of the vertices of a marching-cubes surface for 8).
-        """
-        key = (id(indices), int(width))
+    def padded(self, offsets: np.ndarray, indices: np.ndarray, width: int = 8,
+               dtype=np.float64, ext_width: int = 4) -> "PaddedRing":
+        """A neighbourhood CSR of this structure (1-ring, feature ring, ...) as fixed-width
+        columns (column-major ELLPACK) for the smoothing hot loop, cached: see
+        :class:`PaddedRing`."""
+        key = (id(indices), int(width), int(ext_width), np.dtype(dtype).str)
         hit = self._padded.get(key)
         if hit is not None and hit[0] is indices and hit[1] is offsets:
             return hit[2]
-        out = _k.padded_rows(offsets, indices, np.int64(width))
+        cols, inv_count, ext, level_at = _k.padded_columns(offsets, indices, np.int64(width),
+                                                           np.int64(ext_width))
+        out = PaddedRing(cols, inv_count.astype(dtype), ext, level_at)
         self._padded[key] = (indices, offsets, out)
         return out
 
-    def work_buffers(self, dtype=np.float64) -> Tuple[np.ndarray, np.ndarray]:
-        """Two (N + 1, 3) working arrays for smoothing passes, allocated once per dtype; row N
-        stays zero (the pad row of :meth:`padded`). Reused by every call on this structure, so
-        a filter must copy its result out (the filters do); not for concurrent use."""
-        dt = np.dtype(dtype)
-        if dt not in self._buffers:
-            self._buffers[dt] = (np.zeros((self.n_vertices + 1, 3), dt),
-                                 np.zeros((self.n_vertices + 1, 3), dt))
-        a, b = self._buffers[dt]
-        a[-1] = 0
-        b[-1] = 0
-        return a, b
+    def work_buffers(self, dtype=np.float64, count: int = 2,
+                     columns: Optional[int] = None) -> Tuple[np.ndarray, ...]:
+        """``count`` (3, columns) working arrays (one row per coordinate: the column layout of
+        the smoothing passes; default N + 1 columns), allocated once per dtype and width; column
+        N of the first two is zeroed (the pad of :meth:`padded`). Reused by every call on this
+        structure, so a filter must copy its result out (the filters do); not for concurrent
+        use."""
+        width = self.n_vertices + 1 if columns is None else int(columns)
+        key = (np.dtype(dtype), width)
+        have = self._buffers.get(key, ())
+        if len(have) < count:
+            have = have + tuple(np.zeros((3, width), key[0]) for _ in range(count - len(have)))
+            self._buffers[key] = have
+        for buf in have[:2]:
+            buf[:, self.n_vertices] = 0
+        return have[:count]
 
     def _groups_key(self, face_groups) -> str:
         """Content key of a face-groups array; the full hash is skipped when the same array

@@ -573,19 +573,36 @@ def spiky_bipyramid(k=13, seed=3):
     return v, np.array(f, np.int32)
 
 
-def test_padded_rows_hold_every_neighbour_or_defer_to_the_csr():
-    v, f = spiky_bipyramid()
-    s = N.MeshStructure(f, len(v))
-    rows, inv = s.padded(s.ring_offsets, s.ring, 8)
-    val = s.valence()
-    assert val.max() == 13 and rows.shape == (len(v), 8)
+@pytest.mark.parametrize("k", [13, 30])
+def test_padded_columns_sum_every_neighbour_through_helper_columns(k):
+    """Apexes of valence 13 (a chain of two helper columns) and 30 (a chain of eight): the
+    padded columns plus the helper sums give exactly the sum over every 1-ring neighbour."""
+    from anatomesh.core import _smooth_kernels as K
+
+    v, f = spiky_bipyramid(k)
+    n = len(v)
+    s = N.MeshStructure(f, n)
+    ring = s.padded(s.ring_offsets, s.ring, 8)
+    assert ring.cols.shape == (8, n) and ring.cols.dtype == np.uint32
+    chain = 2 if k == 13 else 8  # helpers per apex: 7 in the columns, 3 per helper, 4 in the last
+    assert ring.ext.shape[1] == ring.level_at[-1] == 2 * chain and len(ring.level_at) == chain + 1
+    P = np.zeros((3, ring.n_columns))
+    P[:, :n] = v.T
+    K.helper_sums(P, ring.ext, ring.level_at, n)
+    sums = P[:, ring.cols].sum(axis=1).T  # (n, 3): padded columns, helpers included
     for i, r in enumerate(csr_rows(s.ring_offsets, s.ring)):
+        np.testing.assert_allclose(sums[i], v[r].sum(axis=0), atol=1e-12)
+        assert ring.inv_count[i] == pytest.approx(1 / len(r))
         if len(r) <= 8:
-            assert list(rows[i, :len(r)]) == r and np.all(rows[i, len(r):] == len(v))
-            assert inv[i] == pytest.approx(1 / len(r))
-        else:
-            assert inv[i] == pytest.approx(-1 / len(r))  # read from the CSR
+            assert list(ring.cols[:len(r), i]) == r and np.all(ring.cols[len(r):, i] == n)
     assert s.padded(s.ring_offsets, s.ring, 8) is s.padded(s.ring_offsets, s.ring, 8)
+    assert s.padded(s.ring_offsets, s.ring, 8, np.float32).inv_count.dtype == np.float32
+    out = S.laplacian(v, f, iterations=3, lam=0.7)
+    ref = v.copy()
+    rings = ref_rings(f, n)
+    for _ in range(3):
+        ref = ref_umbrella(ref, rings, 0.7)
+    np.testing.assert_allclose(out, ref, atol=1e-12)
 
 
 def test_long_rows_oblique_box_and_cap_match_reference():
@@ -665,6 +682,27 @@ def test_parallel_passes_on_a_real_map_match_a_vectorised_reference():
     out = S.taubin(v, ss.faces, iterations=3, constraint=box, face_groups=groups)
     np.testing.assert_allclose(out, ref, atol=1e-9)
     assert np.abs(out - v).max() > 0.5  # vertices did move
+
+
+def test_float32_precision_stays_in_the_box_and_near_float64():
+    """The live sliders' float32 arithmetic on the 41-label map (lattice box, junction curves,
+    a cap): within 1e-3 mm of float64, inside every voxel cell, the cap kept, seams shared."""
+    from anatomesh.core import load
+
+    ss = label_surfaces(load(shared("totalsegmentator", "example_seg.nii.gz")))
+    groups = S.face_groups_of(ss.face_labels)
+    box = S.lattice_constraint(ss.affine, ss.lattice, max_deviation=0.6)
+    kw = dict(iterations=20, lam=0.55, mu=-0.58, constraint=box, face_groups=groups)
+    ref = S.taubin(ss.vertices.astype(np.float64), ss.faces, **kw)
+    fast = S.taubin(ss.vertices, ss.faces, precision="float32", **kw)
+    assert fast.dtype == np.float32
+    assert np.abs(fast - ref).max() < 1e-3 and np.abs(ref - ss.vertices).max() > 0.5
+    centre = (ss.lattice - 0.5) @ ss.affine[:3, :3].T + ss.affine[:3, 3]
+    u = np.linalg.solve(ss.affine[:3, :3], (fast.astype(np.float64) - centre).T)
+    assert np.abs(u).max() <= 0.5 + 1e-5  # in its cell, up to float32 rounding of mm
+    assert np.linalg.norm(fast - ss.vertices, axis=1).max() <= 0.6 + 1e-4
+    with pytest.raises(AnatomeshError, match="precision"):
+        S.taubin(ss.vertices, ss.faces, precision="half")
 
 
 def test_face_groups_are_hashed_once_per_array_and_changes_are_seen():
