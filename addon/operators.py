@@ -605,10 +605,14 @@ def export_meshes(context, objects, folder: str, fmt: str, refuse=None) -> List[
 
 
 def export_gltf(context, objects, path: str, fmt: str) -> None:
-    """glTF/GLB through Blender's exporter, converted to metres (glTF's unit) and Y-up.
+    """glTF/GLB through Blender's exporter, converted to metres (glTF's unit) and Y-up, facing
+    +Z (glTF's front) as ``anatomesh mesh --format glb`` does.
 
-    The objects are scaled by 0.001 for the export and restored exactly afterwards, and the
-    selection is restored; nothing in the scene changes.
+    Blender's exporter maps (x, y, z) to glTF (x, z, −y): LPS data (y = posterior) then faces
+    +Z, RAS data would face −Z, so RAS objects are first turned 180° about the body axis
+    (``core.export_gltf.AXES``). The objects are scaled by 0.001 (and turned) for the export
+    and restored exactly afterwards, and the selection is restored; nothing in the scene
+    changes. Re-imported into Blender, the surfaces arrive in LPS (like the CLI's GLB).
     """
     sel = [o for o in context.view_layer.objects if o.select_get()]
     active = context.view_layer.objects.active
@@ -616,13 +620,15 @@ def export_gltf(context, objects, path: str, fmt: str) -> None:
     names = set(saved)
     from mathutils import Matrix
 
-    scale = Matrix.Scale(0.001, 4)
+    to_gltf = {"RAS": Matrix.Scale(0.001, 4) @ Matrix.Rotation(np.pi, 4, "Z"),
+               "LPS": Matrix.Scale(0.001, 4)}
     try:
         for o in context.view_layer.objects:
             o.select_set(o.name in names)
         for o in objects:
             if o.parent is None or o.parent.name not in names:
-                o.matrix_world = scale @ o.matrix_world
+                space = str(o.get("anatomesh_space", "RAS"))
+                o.matrix_world = to_gltf.get(space, to_gltf["LPS"]) @ o.matrix_world
         context.view_layer.update()
         bpy.ops.export_scene.gltf(filepath=path, export_format="GLB" if fmt == "GLB" else "GLTF_SEPARATE",
                                   use_selection=True, export_yup=True, export_apply=True,

@@ -6,6 +6,7 @@ runs along the outer voxel faces, so its bounding box is the voxel box grown by 
 """
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import struct
@@ -215,7 +216,10 @@ def test_export_files_reimport_with_same_counts_and_extents(scan, mods, volume, 
     assert len(parts) == 41 and len(parts["liver"].faces) == len(liver.data.polygons)
     np.testing.assert_allclose(np.stack([parts["liver"].vertices.min(0), parts["liver"].vertices.max(0)]), box, atol=1e-3)
     assert parts["liver"].color[:3] == pytest.approx(tuple(volume.labels[5].color)[:3], abs=1 / 255)
-    # glTF: one file, metres, Y up; the importer brings it back Z up
+    # glTF: one file, metres, Y up, the front facing +Z as the CLI's GLB; the importer brings
+    # it back Z up, in LPS
+    from anatomesh.core.export_gltf import AXES
+
     out = tmp_path / "GLB"
     assert bpy.ops.anatomesh.export(directory=str(out), format="GLB", collection=scan.name) == {"FINISHED"}
     assert liver.matrix_world == liver.matrix_world.Identity(4)  # the scene is left as it was
@@ -224,12 +228,18 @@ def test_export_files_reimport_with_same_counts_and_extents(scan, mods, volume, 
     doc = json.loads(glb[20:20 + length])
     node = next(n for n in doc["nodes"] if n["name"] == "liver")
     acc = doc["accessors"][doc["meshes"][node["mesh"]]["primitives"][0]["attributes"]["POSITION"]]
-    # glTF is in metres, Y up: the node scales the mm vertex data by 0.001, and glTF (x, y, z)
-    # is Blender (x, z, -y)
     assert node["scale"] == pytest.approx([0.001] * 3) and node["extras"]["anatomesh_space"] == "RAS"
-    lo, hi = np.array(acc["min"]), np.array(acc["max"])
-    gl_box = np.stack([[lo[0], -hi[2], lo[1]], [hi[0], -lo[2], hi[1]]])
-    np.testing.assert_allclose(gl_box, box, atol=1e-2)
+    # in glTF's world (node rotation and scale on the Y-up vertex data) the liver lies where
+    # the CLI's GLB puts it: glTF = AXES["RAS"] @ RAS / 1000
+    x, y, z, w = node["rotation"]
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    corners = np.array(list(itertools.product(*zip(acc["min"], acc["max"]))))  # 8 box corners
+    world = corners @ (0.001 * R).T
+    expect = box @ AXES["RAS"].T * 0.001
+    np.testing.assert_allclose(np.sort(np.stack([world.min(0), world.max(0)]), axis=0),
+                               np.sort(np.stack([expect.min(0), expect.max(0)]), axis=0), atol=1e-5)
     before = set(bpy.data.objects)
     bpy.ops.import_scene.gltf(filepath=str(out / "example_seg.glb"))  # converts metres to the scene's mm
     new = [o for o in bpy.data.objects if o not in before and o.type == "MESH"]
@@ -237,7 +247,8 @@ def test_export_files_reimport_with_same_counts_and_extents(scan, mods, volume, 
     g = next(o for o in new if o.name.startswith("liver"))
     v, f = bridge.world_arrays(g)
     assert len(f) == len(liver.data.polygons)
-    np.testing.assert_allclose(np.stack([v.min(0), v.max(0)]), box, atol=1e-2)
+    lps_box = np.sort(box * [-1, -1, 1], axis=0)  # RAS → LPS: x and y change sign
+    np.testing.assert_allclose(np.stack([v.min(0), v.max(0)]), lps_box, atol=1e-2)
 
 
 def test_export_refuses_to_overwrite(scan, tmp_path):
