@@ -64,3 +64,22 @@ def test_example_script_runs_headless(tmp_path):
     assert out.returncode == 0, out.stderr[-3000:]
     assert "41 surfaces in 'example_seg'" in out.stdout
     assert (tmp_path / "example_seg.blend").stat().st_size > 100_000
+
+
+def test_example_runs_as_blender_runs_it(tmp_path):
+    """examples/pipeline_to_blend.py the way `blender -b -P script.py -- options` runs it: bpy
+    already imported, Blender's own arguments before "--", the script run as __main__."""
+    script = REPO / "examples" / "pipeline_to_blend.py"
+    launcher = textwrap.dedent(f"""
+        import runpy, sys
+        import bpy
+        sys.argv = ["blender", "-b", "-P", {str(script)!r}, "--", "--out", {str(tmp_path)!r},
+                    "--labels", "liver,spleen", "--samples", "1"]
+        runpy.run_path({str(script)!r}, run_name="__main__")
+    """)
+    out = subprocess.run([sys.executable, "-c", launcher], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "2 surfaces" in out.stdout
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"liver.stl", "spleen.stl", "example_seg.glb", "example_seg.blend", "example_seg.png"} <= names
