@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._search_kernels import other_corners
+
 
 @njit(cache=True)
 def _sort_unique_segment(buf, start, stop):
@@ -308,3 +310,55 @@ def padded_columns(offsets, nbr, width, ext_width):
                 ext[ext_width - 1, h] = np.uint32(n + 1 + nxt)
                 h = nxt
     return cols, inv_count, ext, level_at
+
+
+@njit(cache=True)
+def fan_counts(faces, vf_offsets, vf):
+    """Number of fans of faces around each vertex, (n,) int32: the incident faces linked when
+    they share an edge at the vertex (the same other endpoint). A manifold vertex has one (a
+    disk or a half-disk at a boundary), a pinch point more, an unused vertex none."""
+    n = vf_offsets.shape[0] - 1
+    out = np.zeros(n, np.int32)
+    most = 0
+    for i in range(n):
+        most = max(most, vf_offsets[i + 1] - vf_offsets[i])
+    parent = np.empty(most, np.int64)
+    spoke = np.empty(2 * most, np.int64)  # the other endpoint of each face's two edges at i
+    order = np.empty(2 * most, np.int64)
+    for i in range(n):
+        lo, k = vf_offsets[i], vf_offsets[i + 1] - vf_offsets[i]
+        for p in range(k):
+            parent[p] = p
+            spoke[2 * p], spoke[2 * p + 1] = other_corners(faces, vf[lo + p], i)
+        _sort_indices(spoke, 2 * k, order)  # equal spokes side by side: faces sharing that edge
+        fans = k
+        for t in range(1, 2 * k):
+            if spoke[order[t]] == spoke[order[t - 1]]:
+                a, b = _root(parent, order[t] // 2), _root(parent, order[t - 1] // 2)
+                if a != b:
+                    parent[max(a, b)] = min(a, b)
+                    fans -= 1
+        out[i] = fans
+    return out
+
+
+@njit(cache=True)
+def _root(parent, a):
+    while parent[a] != a:
+        a = parent[a]
+    return a
+
+
+@njit(cache=True)
+def _sort_indices(keys, m, order):
+    """``order[:m]`` = the indices sorting ``keys[:m]``: insertion sort for the usual handful
+    (no allocation), numpy's sort for long lists."""
+    if m > 32:
+        order[:m] = np.argsort(keys[:m])
+        return
+    for t in range(m):
+        order[t] = t
+        u = t
+        while u > 0 and keys[order[u - 1]] > keys[order[u]]:
+            order[u - 1], order[u] = order[u], order[u - 1]
+            u -= 1

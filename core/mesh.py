@@ -223,32 +223,18 @@ def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> 
 
 
 def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Vertices whose incident faces form more than one fan (pinch points).
+    """Vertices whose incident faces form more than one fan (pinch points), ascending int64.
 
     For each vertex, the faces around it are linked through the edges they share at that vertex;
     a manifold vertex has exactly one linked group. Works on any mesh (boundaries allowed).
     """
-    f = np.asarray(faces, dtype=np.int64)
-    m = f.shape[0]
-    if m == 0:
+    from ._neighbors_kernels import fan_counts, vertex_faces
+
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    if f.shape[0] == 0:
         return np.zeros(0, np.int64)
-    # corner c = (face, k): vertex f[face,k]; its two edges at that vertex go to f[face,k+1], f[face,k-1]
-    center = f.ravel()
-    nxt = np.roll(f, -1, axis=1).ravel()
-    prv = np.roll(f, 1, axis=1).ravel()
-    n = np.int64(max(n_vertices, 1))
-    # link corners (same centre vertex) that share an edge: key = (centre, other endpoint)
-    keys = np.r_[center * n + nxt, center * n + prv]
-    corner = np.r_[np.arange(3 * m), np.arange(3 * m)]
-    order = np.argsort(keys, kind="stable")
-    ks, cs = keys[order], corner[order]
-    same = ks[1:] == ks[:-1]
-    a, b = cs[:-1][same], cs[1:][same]
-    roots = _connected_vertex_roots(a, b, 3 * m)
-    # count distinct fan roots per centre vertex
-    pairs = np.unique(np.stack([center, roots], axis=1), axis=0)
-    verts, nfans = np.unique(pairs[:, 0], return_counts=True)
-    return verts[nfans > 1]
+    vf_offsets, vf = vertex_faces(f, np.int64(max(n_vertices, int(f.max()) + 1)))
+    return np.flatnonzero(fan_counts(f, vf_offsets, vf) > 1).astype(np.int64)
 
 
 def component_measures(vertices: np.ndarray, faces: np.ndarray) -> List[Dict]:

@@ -56,3 +56,32 @@ def test_degenerate_and_duplicates():
     f = np.array([[0, 1, 2], [0, 1, 3], [1, 1, 3]])
     assert list(M.degenerate_faces(v, f)) == [0, 2]
     assert list(M.duplicate_vertices(v)) == [4]
+
+
+def cone_fan(k, apex=0, first=1):
+    """Faces of a closed cone: apex ``apex`` over a k-gon rim ``first .. first+k-1`` with a
+    centre ``first + k`` under it."""
+    rim = first + np.arange(k)
+    nxt = first + (np.arange(k) + 1) % k
+    base = first + k
+    return np.r_[np.c_[np.full(k, apex), rim, nxt], np.c_[np.full(k, base), nxt, rim]]
+
+
+def test_pinch_found_among_many_faces_and_every_fan_counted():
+    """Two closed cones touching at the apex, 40 faces each side (past the small-list sort):
+    the apex is the one pinch; one cone alone has none; 3 cones give 3 fans."""
+    one = cone_fan(40)
+    assert M.nonmanifold_vertices(one, 42).size == 0 and M.topology(np.random.rand(42, 3), one).manifold
+    two = np.r_[one, cone_fan(40, first=42)]
+    assert list(M.nonmanifold_vertices(two, 83)) == [0]
+    from anatomesh.core._neighbors_kernels import fan_counts, vertex_faces
+
+    three = np.r_[two, cone_fan(5, first=83)]
+    offsets, vf = vertex_faces(three, np.int64(89))
+    fans = fan_counts(three, offsets, vf)
+    assert fans[0] == 3 and np.all(fans[1:] == 1)
+    # a pinch in the middle of a real surface: glue two vertices of a sphere's far sides
+    v, f = icosphere(3)
+    far = int(np.argmax(v[:, 0])), int(np.argmin(v[:, 0]))
+    glued = np.where(f == far[1], far[0], f)
+    assert list(M.nonmanifold_vertices(glued, len(v))) == [far[0]]
