@@ -173,10 +173,12 @@ def tri_tri_intersect(v0, v1, v2, u0, u1, u2, rel_eps):
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin, h, dims,
-                rel_eps, out, n_out):
+                rel_eps, active, out, n_out):
     """Test the face pairs of cell c (each pair once: in the cell holding the low corner of the
-    overlap of their boxes); faces sharing a (welded) vertex are skipped. Writes pairs into
-    ``out`` from row ``n_out`` when ``out`` has rows; returns the new count."""
+    overlap of their boxes); faces sharing a (welded) vertex are skipped, and pairs with no
+    ``active`` face when ``active`` has entries. Writes pairs into ``out`` from row ``n_out``
+    when ``out`` has rows; returns the new count."""
+    some = active.shape[0] > 0
     i0 = start[c]
     i1 = start[c + 1]
     ck = c % dims[2]
@@ -187,6 +189,8 @@ def _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
         fa = items[s]
         for t in range(s + 1, i1):
             fb = items[t]
+            if some and not active[fa] and not active[fb]:
+                continue
             # boxes overlap?
             ok = True
             own = True
@@ -220,9 +224,10 @@ def _cell_pairs(c, start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
 
 
 @njit(cache=True, parallel=True)
-def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, rel_eps):
+def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, rel_eps, active):
     """All pairs (K, 2) int64 of faces that intersect and share no welded vertex (cells in
-    parallel: one pass counts, the second writes each cell's pairs at its offset)."""
+    parallel: one pass counts, the second writes each cell's pairs at its offset); when
+    ``active`` (M,) bool has entries, only pairs with an active face."""
     m = faces.shape[0]
     fmin = np.empty((m, 3))
     fmax = np.empty((m, 3))
@@ -233,12 +238,20 @@ def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, r
             x2 = vertices[faces[f, 2], a]
             fmin[f, a] = min(x0, min(x1, x2))
             fmax[f, a] = max(x0, max(x1, x2))
-    busy = np.flatnonzero(start[1:] - start[:-1] > 1)
+    keep = start[1:] - start[:-1] > 1  # cells with a pair (and an active face, if filtered)
+    if active.shape[0] > 0:
+        for c in prange(keep.shape[0]):
+            if keep[c]:
+                hit = False
+                for s in range(start[c], start[c + 1]):
+                    hit = hit or active[items[s]]
+                keep[c] = hit
+    busy = np.flatnonzero(keep)
     counts = np.zeros(busy.shape[0], np.int64)
     empty = np.zeros((0, 2), np.int64)
     for b in prange(busy.shape[0]):
         counts[b] = _cell_pairs(busy[b], start, items, vertices, faces, wfaces, fmin, fmax,
-                                origin, h, dims, rel_eps, empty, 0)
+                                origin, h, dims, rel_eps, active, empty, 0)
     offs = np.zeros(busy.shape[0] + 1, np.int64)
     for b in range(busy.shape[0]):
         offs[b + 1] = offs[b] + counts[b]
@@ -246,7 +259,7 @@ def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, r
     for b in prange(busy.shape[0]):
         if counts[b] > 0:
             _cell_pairs(busy[b], start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
-                        dims, rel_eps, out, offs[b])
+                        dims, rel_eps, active, out, offs[b])
     return out
 
 

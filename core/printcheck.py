@@ -187,8 +187,10 @@ def tiny_shells(vertices: np.ndarray, faces: np.ndarray, min_volume_mm3: float) 
     return out
 
 
-def _intersections_all(parts: Sequence[Tuple[np.ndarray, np.ndarray]], rel_eps: float = 1e-9):
-    """Intersecting face pairs of all parts together.
+def _intersections_all(parts: Sequence[Tuple[np.ndarray, np.ndarray]], rel_eps: float = 1e-9,
+                       active: Optional[np.ndarray] = None):
+    """Intersecting face pairs of all parts together (only pairs with an ``active`` face, (M,)
+    bool over all parts' faces in order, when given).
 
     Returns (vertices, faces, part_of_face, face_offset, pairs (K, 2) global face indices)."""
     offs_v = np.cumsum([0] + [len(v) for v, _ in parts])
@@ -202,16 +204,23 @@ def _intersections_all(parts: Sequence[Tuple[np.ndarray, np.ndarray]], rel_eps: 
     wf = np.ascontiguousarray(wid[f])
     f32 = np.ascontiguousarray(f, np.int32)
     g = TriangleGrid(v, f32)
+    act = np.zeros(0, np.bool_) if active is None else np.ascontiguousarray(active, np.bool_)
+    if act.size and act.shape != (len(f),):
+        raise AnatomeshError(f"active must hold one flag per face ({len(f)}), got {act.shape}")
     pairs = _pk.intersecting_pairs(g.vertices, g.faces, wf, g.origin, g.cell_size, g.dims, g.start,
-                                   g.items, rel_eps)
+                                   g.items, rel_eps, act)
     return v, f, part, offs_f, pairs
 
 
-def self_intersections(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def self_intersections(vertices: np.ndarray, faces: np.ndarray,
+                       active: Optional[np.ndarray] = None) -> np.ndarray:
     """Pairs of faces (K, 2) int64 that cross each other, among faces sharing no vertex
-    (vertices at identical positions count as shared). Möller 1997 over a uniform grid."""
+    (vertices at identical positions count as shared). Möller 1997 over a uniform grid.
+
+    ``active`` (M,) bool, optional: test only pairs with at least one active face (after moving
+    a few vertices, the faces touching them: no other pair can have changed)."""
     v, f = _check_mesh(vertices, faces)
-    return _intersections_all([(v, f)])[4]
+    return _intersections_all([(v, f)], active=active)[4]
 
 
 def part_intersections(meshes: Sequence[Mesh]) -> List[Dict]:

@@ -52,7 +52,8 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
         t = 0.0 if k == rounds else shrink
         v[ring] = r[ring] + t * (v[ring] - r[ring])
         info["rounds"] = k + 1
-        pairs = self_intersections(v, f)
+        # every crossing face was moved: a pair can cross now only if one of its faces moved
+        pairs = self_intersections(v, f, active=ring[f].any(axis=1))
     info["moved_vertices"] = int(moved.sum())
     info["crossings_left"] = int(len(pairs))
     return v, info

@@ -32,6 +32,19 @@ def test_smoothing_alone_makes_faces_cross_and_untangle_removes_every_crossing(s
     assert np.all(d_new <= d_old + 1e-5)
 
 
+def test_active_faces_give_exactly_the_pairs_that_touch_them(smoothed_sample):
+    """self_intersections(..., active=): the full answer's pairs with an active face, no more."""
+    _, sm = smoothed_sample
+    full = self_intersections(sm.vertices, sm.faces)
+    active = np.zeros(len(sm.faces), bool)
+    active[full[::2, 0]] = True  # half the crossings' first faces
+    active[np.random.default_rng(0).integers(0, len(sm.faces), 500)] = True
+    got = self_intersections(sm.vertices, sm.faces, active=active)
+    want = full[active[full[:, 0]] | active[full[:, 1]]]
+    assert 0 < len(got) < len(full)
+    assert sorted(map(tuple, got)) == sorted(map(tuple, want))
+
+
 def test_untangle_is_a_no_op_without_crossings(smoothed_sample):
     raw, _ = smoothed_sample
     v, info = untangle(raw.vertices + 0.0, raw.vertices, raw.faces)
