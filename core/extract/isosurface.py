@@ -48,7 +48,8 @@ from .mc_table import TRI_COUNT, TRI_EDGES
 
 #: clamp of the interpolation parameter along an edge (fraction of a voxel)
 T_MIN = 1e-3
-#: slabs per work item of the parallel passes after classification (dynamic scheduling)
+#: most slabs per work item of the parallel passes after classification (dynamic scheduling;
+#: fewer when the sweep has fewer than 16 work items of this size)
 SLAB_CHUNK = 32
 
 _MAX_INDEX = 2**31 - 1
@@ -139,9 +140,9 @@ def isosurfaces(volume, levels: Sequence[float], affine: Optional[np.ndarray] = 
 
 # ---------------------------------------------------------------------------------------------
 def _extract(view, bits, level, pad, dims, m, n, flip, space, cap) -> Mesh:
-    # slabs handed out 32 at a time as threads free up: the surface is rarely spread evenly
+    # slabs handed out a few at a time as threads free up: the surface is rarely spread evenly
     # along the sweep (chest CT bone: 1.4x more in one half; 60 -> 44 ms)
-    with numba.parallel_chunksize(SLAB_CHUNK):
+    with numba.parallel_chunksize(max(1, min(SLAB_CHUNK, dims[0] // 16))):
         return _extract_slabs(view, bits, level, pad, dims, m, n, flip, space, cap)
 
 
