@@ -37,8 +37,9 @@ WEIGHT_GIVEN = 2
 #: the neighbour loop unrolls; 97 % of marching-cubes vertices have at most 8 neighbours, the
 #: rest are read from the CSR
 PAD_WIDTH = 8
-#: width of the helper columns' lists (``MeshStructure.padded``): rows longer than PAD_WIDTH
-#: hold 7.4 neighbours on average on a marching-cubes surface, so 4 leaves 2.4 for a helper
+#: width of the helper columns' lists (``MeshStructure.padded``): a row longer than PAD_WIDTH
+#: keeps 7 neighbours in its columns; on a marching-cubes surface such rows have 9.4 on
+#: average, so a helper sums 2.4 and 4 slots rarely need a chain
 EXT_WIDTH = 4
 
 
@@ -494,8 +495,8 @@ def offset_update(src, dst, vf_offsets, vf, normals, areas, t, gain):
 # Layout: positions are "structure of arrays" P (3, N + 1) — a row per coordinate, column N zero
 # (the pad) — and neighbours are padded columns ``cols`` (width, N) uint32 (column-major
 # ELLPACK, see ``MeshStructure.padded``). The pass loop then has a fixed trip count and no
-# branch, and LLVM turns it into SIMD gathers over 8 or 16 vertices at once (2–3x less CPU
-# than a row-per-vertex layout). It runs in float32 (live sliders) or float64 alike.
+# branch, and LLVM turns it into SIMD gathers over several vertices at once (about 2x less
+# CPU than a row-per-vertex layout). It runs in float32 (live sliders) or float64 alike.
 
 @njit(parallel=True, fastmath=FAST, cache=True)
 def to_columns(src, m, dst):

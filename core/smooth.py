@@ -389,16 +389,16 @@ def _uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, const
     c = constraint or Constraint()
     kind, center, frame, frame_inv, radius, start = c.arrays(v)
     boxed, capped = kind != 0, radius < np.inf
-    a, b, box_c, cap_s = s.work_buffers(dt, 4 if boxed or capped else 2, ring.n_columns) + (None,) * (
-        0 if boxed or capped else 2)  # None: numba compiles the step out of the pass
+    bufs = s.work_buffers(dt, 4 if boxed or capped else 2, ring.n_columns)
+    a, b = bufs[:2]
+    box_c = bufs[2] if boxed else None  # None: numba compiles the step out of the pass
+    cap_s = bufs[3] if capped else None
     to_frame, metric = (frame, frame_inv) if boxed else (_EYE, _EYE)
     _k.to_columns(v, to_frame, a)
     if boxed:
         _k.to_columns(center, frame, box_c)
     if capped:
         _k.to_columns(start, to_frame, cap_s)
-    box_c = box_c if boxed else None
-    cap_s = cap_s if capped else None
     r2, metric = dt.type(radius * radius if capped else 0.0), metric.astype(dt)
     if (boxed or capped) and not (c.origin is None and c.center is None):
         # the start is not the centre of the box or cap: move it in first
