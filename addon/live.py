@@ -144,6 +144,18 @@ def smooth_collection(collection: bpy.types.Collection, method: str, iterations:
     return surf
 
 
+def warm_up(surf: ScanSurface) -> None:
+    """Compile the live-smoothing kernels for this kind of surface (lattice box or voxel box,
+    junction curves or not) on a tetrahedron, so the first slider move is as fast as the next
+    (numba compiles once per install: ~10 s; later sessions read the cache)."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]], np.int32)
+    groups = None if surf.face_groups is None else np.zeros(4, surf.face_groups.dtype)
+    lattice = None if surf.lattice is None else np.zeros((4, 3), surf.lattice.dtype)
+    tiny = ScanSurface(v, f, face_groups=groups, lattice=lattice, affine=surf.affine)
+    smooth_vertices(tiny, "TAUBIN", 1, 0.5, 0.0, True)
+
+
 def smooth_vertices(surf: ScanSurface, method: str, iterations: int, strength: float,
                     max_deviation: float, in_cell: bool = True) -> np.ndarray:
     """Core's smoothing filter on the shared arrays; returns new (V, 3) float32 positions (mm).

@@ -272,8 +272,13 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
                 items.append((m, lv, name, color, None))
             else:
                 warnings.append(f"isovalue {lv:g} ({name}) gives no surface: it is outside the data range")
+    coll = scan_to_scene(context, volume, items, surface, warnings, render_method)
+    if not _KERNELS_WARM:  # so the first slider move is as fast as the next
+        if progress is not None:
+            progress(1.0, "first run: compiling the live smoothing kernels once")
+        live.warm_up(live.scan_surface(coll))
     _KERNELS_WARM = True
-    return scan_to_scene(context, volume, items, surface, warnings, render_method)
+    return coll
 
 
 def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.ScanSurface"],
