@@ -632,7 +632,8 @@ def export_gltf(context, objects, path: str, fmt: str) -> None:
             o.select_set(o.name in names)
         for o in objects:
             if o.parent is None or o.parent.name not in names:
-                space = str(o.get("anatomesh_space", "RAS"))
+                # objects not made by Anatomesh keep Blender's own front (−Y → glTF +Z)
+                space = str(o.get("anatomesh_space", ""))
                 o.matrix_world = to_gltf.get(space, to_gltf["LPS"]) @ o.matrix_world
         context.view_layer.update()
         bpy.ops.export_scene.gltf(filepath=path, export_format="GLB" if fmt == "GLB" else "GLTF_SEPARATE",
