@@ -6,7 +6,7 @@ with the core result, measured error per organ.
 * Preview (``anatomesh.decimate_preview``): a Decimate modifier (collapse) on every surface object
   of the scan — non-destructive, quick, but each organ on its own: seams may open in the preview.
   For a max-error target the ratio of each organ comes from a core run.
-* Apply (``anatomesh.decimate_apply``): core's quadric decimation (:mod:`anatomesh.core.decimate`)
+* Apply (``anatomesh.decimate_apply``): core's quadric decimation (:mod:`anatomesh.core.decimate.qem`)
   on the whole scan at once. For a label map the objects' shells are put back together into one
   SurfaceSet (shared vertices from the ``anatomesh_vid`` attribute, interface triangles once, pinch
   copies as split rows), so every interface is decimated once for both organs and seams stay
@@ -88,8 +88,8 @@ def surface_set_from_objects(objects) -> Tuple[object, List]:
     where a shell touches itself) gives split rows, so the shells come back 2-manifold.
     Positions are the objects' current ones (the shape shown). Returns ``(SurfaceSet, objects)``.
     """
-    from ..core.errors import AnatomeshError
-    from ..core.surfaceset import SurfaceSet
+    from ..core.model.errors import AnatomeshError
+    from ..core.model.surfaceset import SurfaceSet
 
     parts = []
     for o in objects:
@@ -170,9 +170,9 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     surfaces (isosurfaces) one by one. Returns ``{object name: shell measures}`` (core's keys:
     ``faces_before``, ``faces_after``, ``hausdorff_mm``, ``mean_mm``, ``volume_change_pct``).
     """
-    from ..core.decimate import decimate_mesh, decimate_surfaces
-    from ..core.errors import AnatomeshError
-    from ..core.mesh import Mesh
+    from ..core.decimate.qem import decimate_mesh, decimate_surfaces
+    from ..core.model.errors import AnatomeshError
+    from ..core.model.mesh import Mesh
 
     objs = scene.surface_objects(collection)
     if not objs:
@@ -225,8 +225,8 @@ def _preview_ratios(objs, target, ratio, faces, max_error) -> Dict[str, float]:
         total = sum(len(o.data.polygons) for o in objs)
         r = _core_target(target, ratio, faces, max_error, total)["ratio"]
         return {o.name: r for o in objs}
-    from ..core.decimate import decimate_mesh, decimate_surfaces
-    from ..core.mesh import Mesh
+    from ..core.decimate.qem import decimate_mesh, decimate_surfaces
+    from ..core.model.mesh import Mesh
 
     out = {}
     shared = [o for o in objs if bridge.SHARED_INDEX_ATTRIBUTE in o.data.attributes]
@@ -263,7 +263,7 @@ def clear_preview(objs) -> int:
 
 
 def _scan(op, context):
-    from ..core.errors import AnatomeshError
+    from ..core.model.errors import AnatomeshError
 
     coll = bpy.data.collections.get(op.collection) if op.collection else active_scan(context)
     if coll is None or not coll.anatomesh.is_scan:

@@ -42,7 +42,7 @@ def ensure_registered() -> None:
 def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple[int, int] = (960, 540),
                 elevation: float = 30.0, azimuth: float = -25.0,
                 see_through: Sequence[str] = SEE_THROUGH) -> Optional[Path]:
-    """Build the scene of a :class:`~anatomesh.core.pipeline.Result` and save it as ``path``.
+    """Build the scene of a :class:`~anatomesh.app.run.Result` and save it as ``path``.
 
     Parameters
     ----------
@@ -57,7 +57,7 @@ def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple
 
     Returns the .blend path (or None). Errors in Blender become :class:`AnatomeshError`.
     """
-    from ..core.errors import AnatomeshError
+    from ..core.model.errors import AnatomeshError
 
     if not bpy.app.background:
         raise AnatomeshError("write_blend replaces the open file: run it headless "
@@ -105,7 +105,7 @@ def result_to_scene(context, result) -> bpy.types.Collection:
     live.set_scan_settings(coll, smooth_iterations=0)  # the pipeline smoothed already
     recipe = getattr(result, "recipe", None)
     if recipe is not None:
-        from ..core.recipe import dump_recipe
+        from ..app.recipe import dump_recipe
 
         coll["anatomesh_recipe"] = dump_recipe(recipe)
     return coll

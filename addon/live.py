@@ -164,7 +164,7 @@ def smooth_vertices(surf: ScanSurface, method: str, iterations: int, strength: f
     −(λ + 0.03), pass-band 0.1 at λ = 0.5). ``in_cell`` keeps every vertex inside its voxel cell
     (Gibson 1998); ``max_deviation`` > 0 caps each vertex's displacement in mm.
     """
-    from ..core import smooth as S
+    from ..core.smooth import driver as S
 
     name = {"TAUBIN": "taubin", "LAPLACIAN": "laplacian", "HC": "hc",
             "MEAN_CURVATURE": "mean_curvature"}[method]

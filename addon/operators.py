@@ -38,7 +38,7 @@ def guarded(execute):
 
     @functools.wraps(execute)
     def wrapper(self, context):
-        from ..core.errors import AnatomeshError, Cancelled
+        from ..core.model.errors import AnatomeshError, Cancelled
 
         try:
             return execute(self, context)
@@ -115,7 +115,7 @@ def fill_lists(settings, volume) -> None:
     spacing = "x".join(f"{s:.3g}" for s in volume.spacing)
     settings.info = f"{shape} voxels, {spacing} mm, {volume.orientation()} ({volume.space})"
     if volume.is_label_map:
-        from ..core.inspect import label_facts
+        from ..core.io.describe import label_facts
 
         settings.kind = "LABELS"
         for fact in label_facts(volume):
@@ -146,7 +146,7 @@ def chosen_labels(settings, volume, text: str) -> List[Tuple[int, str, Tuple[flo
     ``text``: "" → the included rows of the label list; "all" → every label present; else values
     and/or names separated by commas (names match case-insensitively).
     """
-    from ..core.pipeline import select_labels
+    from ..app.run import select_labels
 
     rows = {item.value: item for item in settings.labels}
     table = volume.labels or {}
@@ -176,7 +176,7 @@ def chosen_levels(settings, text: str) -> List[Tuple[float, str, Tuple[float, fl
             try:
                 v = float(t)
             except ValueError:
-                from ..core.errors import AnatomeshError
+                from ..core.model.errors import AnatomeshError
 
                 raise AnatomeshError(f"isovalue {t!r} is not a number; give levels like '300, -500'")
             out.append((v, f"level {v:g}", (0.9, 0.85, 0.75)))
@@ -236,7 +236,7 @@ def _frame_viewports(context, collection) -> None:
 def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence = (),
                      render_method: str = "DITHERED", progress=None) -> bpy.types.Collection:
     """Extract surfaces (label shells or isosurfaces) and add them as objects in a new collection."""
-    from ..core.errors import AnatomeshError
+    from ..core.model.errors import AnatomeshError
 
     global _KERNELS_WARM
     if not _KERNELS_WARM:
@@ -250,7 +250,7 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
         if not labels:
             raise AnatomeshError("no labels chosen; tick at least one label in the list",
                                  volume.meta.get("source"))
-        from ..core.extract.labels import label_surfaces
+        from ..core.extract.multilabel import label_surfaces
 
         sset = label_surfaces(volume, values=[v for v, _, _ in labels], progress=progress)
         shells = {int(round(float(m.value))): m for m in sset.shells()}
@@ -290,7 +290,7 @@ def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.Scan
     label map's shared :class:`live.ScanSurface` (None: independent isosurfaces, stacked here).
     Used by :func:`extract_to_scene` and by the headless pipeline (``addon/headless.py``).
     """
-    from ..core.errors import AnatomeshError
+    from ..core.model.errors import AnatomeshError
 
     if not items:
         raise AnatomeshError("nothing to show: the chosen labels/levels give no surface",
@@ -427,7 +427,7 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         settings = context.scene.anatomesh
         path = self.filepath or settings.filepath
         if not path:
-            from ..core.errors import AnatomeshError
+            from ..core.model.errors import AnatomeshError
 
             raise AnatomeshError("no scan chosen: set the file in the Import panel or pass filepath=")
         space = settings.space if self.space == "SETTINGS" else self.space
@@ -490,7 +490,7 @@ class ANATOMESH_OT_smooth(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
-        from ..core.errors import AnatomeshError
+        from ..core.model.errors import AnatomeshError
 
         coll = bpy.data.collections.get(self.collection) if self.collection else active_scan(context)
         if coll is None or not coll.anatomesh.is_scan:
@@ -524,7 +524,7 @@ class ANATOMESH_OT_export(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
-        from ..core.errors import AnatomeshError
+        from ..core.model.errors import AnatomeshError
 
         settings = context.scene.anatomesh
         folder = _abspath(self.directory or settings.export_dir)
@@ -535,7 +535,7 @@ class ANATOMESH_OT_export(bpy.types.Operator):
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
         os.makedirs(folder, exist_ok=True)
         if self.format == "3MF":
-            from ..core.export_3mf import write_3mf
+            from ..core.export.threemf import write_3mf
 
             path = os.path.join(folder, _slug(stem) + ".3mf")
             self._refuse([path])
@@ -561,7 +561,7 @@ class ANATOMESH_OT_export(bpy.types.Operator):
         return scene.surface_objects(coll), coll.name
 
     def _refuse(self, paths):
-        from ..core.errors import AnatomeshError
+        from ..core.model.errors import AnatomeshError
 
         existing = [p for p in paths if os.path.exists(p)]
         if existing and not self.overwrite:
@@ -578,8 +578,8 @@ def _slug(name: str) -> str:
 def object_meshes(context, objects) -> list:
     """Core :class:`Mesh` copies of ``objects`` as evaluated (modifiers applied), world mm, with
     name, label value, space and the label colour (sRGB, as the label table gives it)."""
-    from ..core._export_common import linear_to_srgb
-    from ..core.mesh import Mesh
+    from ..core.export.common import linear_to_srgb
+    from ..core.model.mesh import Mesh
 
     depsgraph = context.evaluated_depsgraph_get()
     out = []
@@ -593,7 +593,7 @@ def object_meshes(context, objects) -> list:
 
 def export_meshes(context, objects, folder: str, fmt: str, refuse=None) -> List[str]:
     """One file per object through core's writers (mm, ``SPACE=`` recorded); returns the paths."""
-    from ..core.export import write_mesh
+    from ..core.export.mesh_files import write_mesh
 
     plans, used = [], set()
     for o in objects:
@@ -715,7 +715,7 @@ class ANATOMESH_OT_frame_camera(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
-        from ..core.errors import AnatomeshError
+        from ..core.model.errors import AnatomeshError
 
         coll = bpy.data.collections.get(self.collection) if self.collection else active_scan(context)
         if coll is None:

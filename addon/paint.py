@@ -5,10 +5,10 @@ thickness, gaps) selectable as viewport colour.
   through a colormap, makes it the active and default colour attribute, and records the range on
   the object (``<name>_min`` / ``<name>_max`` custom properties) for a legend.
 * The values come from core, on numpy arrays: mean curvature
-  (:func:`anatomesh.core.measure.vertex_curvatures`, Meyer et al. 2003), distance to the
+  (:func:`anatomesh.core.geometry.measure.vertex_curvatures`, Meyer et al. 2003), distance to the
   unsmoothed surface (the ``anatomesh_rest`` attribute every surface object keeps, see
-  :mod:`.live`), wall thickness (:func:`anatomesh.core.printcheck.wall_thickness`) and the gap to
-  the nearest other part (:class:`anatomesh.core.spatial.TriangleGrid`), all in mm, in world
+  :mod:`.live`), wall thickness (:func:`anatomesh.core.printing.checks.wall_thickness`) and the gap to
+  the nearest other part (:class:`anatomesh.core.geometry.spatial.TriangleGrid`), all in mm, in world
   coordinates.
 * ``anatomesh.paint`` paints the selected Anatomesh objects (or the active scan's) and switches
   every 3D view's solid shading to show the attribute (``shading.color_type = 'VERTEX'``).
@@ -111,7 +111,7 @@ def show_vertex_colors(context) -> int:
 # ---------------------------------------------------------------------------------------------
 def curvature_values(obj) -> np.ndarray:
     """Mean curvature per vertex, 1/mm (> 0 convex)."""
-    from ..core.measure import vertex_curvatures
+    from ..core.geometry.measure import vertex_curvatures
 
     v, f = bridge.world_arrays(obj)
     return vertex_curvatures(v, f)[0]
@@ -120,7 +120,7 @@ def curvature_values(obj) -> np.ndarray:
 def distance_values(obj) -> np.ndarray:
     """Distance (mm) of each vertex to the object's unsmoothed surface (its ``anatomesh_rest``
     positions with the same faces), in world units; NaN without the attribute."""
-    from ..core.spatial import TriangleGrid
+    from ..core.geometry.spatial import TriangleGrid
 
     v, f = bridge.arrays(obj.data)
     rest = bridge.point_attribute(obj.data, bridge.REST_ATTRIBUTE, "vector")
@@ -134,7 +134,7 @@ def distance_values(obj) -> np.ndarray:
 
 def thickness_values(obj, max_thickness: float = 5.0) -> np.ndarray:
     """Wall thickness per vertex, mm (capped at ``max_thickness``)."""
-    from ..core.printcheck import wall_thickness
+    from ..core.printing.checks import wall_thickness
 
     v, f = bridge.world_arrays(obj)
     return wall_thickness(v, f, max_thickness=max_thickness)
@@ -143,7 +143,7 @@ def thickness_values(obj, max_thickness: float = 5.0) -> np.ndarray:
 def gap_values(objs: Sequence, max_distance: float = 5.0) -> List[np.ndarray]:
     """Per object, the distance (mm) of each vertex to the nearest other object of ``objs``
     (capped at ``max_distance``; 0 on shared seams)."""
-    from ..core.spatial import TriangleGrid
+    from ..core.geometry.spatial import TriangleGrid
 
     arrays = [bridge.world_arrays(o) for o in objs]
     grids = [TriangleGrid(v, f) if len(f) else None for v, f in arrays]

@@ -2,9 +2,9 @@
 select/frame them, heat maps.
 
 * Settings (``Scene.anatomesh_print``): printer profile (FDM / resin, from
-  :data:`anatomesh.core.printcheck.PROFILES`), minimum wall and minimum gap in mm (choosing a
+  :data:`anatomesh.core.printing.checks.PROFILES`), minimum wall and minimum gap in mm (choosing a
   profile fills in its values; both stay editable), and whether to check the selection only.
-* ``anatomesh.print_check`` runs :func:`anatomesh.core.printcheck.check_parts` on every Anatomesh
+* ``anatomesh.print_check`` runs :func:`anatomesh.core.printing.checks.check_parts` on every Anatomesh
   surface object of the file (or the selected ones) together, in world coordinates (mm), and
   stores one row per problem (part, kind, value, location) in ``Scene.anatomesh_print.problems``:
   open or non-manifold surfaces, self-intersections, tiny shells, thin regions (thinnest value
@@ -32,7 +32,7 @@ FRAME_DISTANCE_MM = 60.0
 
 
 def _profile_changed(self, context):
-    from ..core.printcheck import PROFILES
+    from ..core.printing.checks import PROFILES
 
     prof = PROFILES[self.profile.lower()]
     self.min_wall, self.min_gap = prof["min_wall"], prof["min_gap"]
@@ -111,8 +111,8 @@ class ANATOMESH_OT_print_check(Operator):
 
     @guarded
     def execute(self, context):
-        from ..core.mesh import Mesh
-        from ..core.printcheck import check_parts
+        from ..core.model.mesh import Mesh
+        from ..core.printing.checks import check_parts
 
         s = context.scene.anatomesh_print
         objs = print_objects(context, s.selected_only)

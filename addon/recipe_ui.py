@@ -1,5 +1,5 @@
 """Anatomesh add-on: save/load the current settings as a recipe TOML file (the same file
-``anatomesh mesh --recipe`` reads, see :mod:`anatomesh.core.recipe`).
+``anatomesh mesh --recipe`` reads, see :mod:`anatomesh.app.recipe`).
 
 * ``anatomesh.recipe_save``: the scene's Anatomesh settings (scan, label ticks or isovalues,
   smoothing of the active scan or the defaults, the Decimate panel's target when the active scan
@@ -33,7 +33,7 @@ _EXPORT_TO_CORE = {"STL": "stl", "PLY": "ply", "OBJ": "obj", "GLB": "glb", "GLTF
 # ---------------------------------------------------------------------------------------------
 def recipe_from_scene(context):
     """A core ``Recipe`` holding the scene's current Anatomesh settings."""
-    from ..core.pipeline import Recipe
+    from ..app.run import Recipe
 
     s = context.scene.anatomesh
     r = Recipe(input=_abspath(s.filepath), series=s.series or None,
@@ -64,7 +64,7 @@ def recipe_from_scene(context):
 
 def _print_to_recipe(r, p) -> None:
     """The Print panel's settings, when its check was run: check on, profile, overridden limits."""
-    from ..core.printcheck import PROFILES
+    from ..core.printing.checks import PROFILES
 
     if p is None or not p.checked:
         return
@@ -93,7 +93,7 @@ def _smoothing_to_recipe(r, method: str, iterations: int, strength: float, max_d
 
 def smoothing_to_ui(recipe) -> dict:
     """The Smooth panel's values for a recipe's smoothing (method, iterations, strength, ...)."""
-    from ..core.smooth import PRESETS
+    from ..core.smooth.driver import PRESETS
 
     name = (recipe.smooth or "none").lower()
     preset = PRESETS.get(name, {})
@@ -111,7 +111,7 @@ def smoothing_to_ui(recipe) -> dict:
 
 def apply_recipe(context, recipe, extract: bool = False) -> None:
     """Put a recipe's settings into the scene; read its scan and tick its labels / levels."""
-    from ..core.pipeline import select_labels
+    from ..app.run import select_labels
 
     s = context.scene.anatomesh
     inp = recipe.input[0] if isinstance(recipe.input, list) else recipe.input
@@ -170,8 +170,8 @@ class ANATOMESH_OT_recipe_save(Operator, ExportHelper):
 
     @guarded
     def execute(self, context):
-        from ..core.errors import AnatomeshError
-        from ..core.recipe import dump_recipe
+        from ..core.model.errors import AnatomeshError
+        from ..app.recipe import dump_recipe
 
         path = _abspath(self.filepath)
         if not path:
@@ -200,7 +200,7 @@ class ANATOMESH_OT_recipe_load(Operator, ImportHelper):
 
     @guarded
     def execute(self, context):
-        from ..core.recipe import load_recipe
+        from ..app.recipe import load_recipe
 
         recipe = load_recipe(_abspath(self.filepath))
         apply_recipe(context, recipe, self.extract)

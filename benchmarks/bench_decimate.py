@@ -7,7 +7,7 @@ pymeshlab ``meshing_decimation_quadric_edge_collapse(preservetopology=True)`` an
 VTK ``vtkQuadricDecimation`` (single-threaded filter), and prints time, faces, and the quality of
 each result: boundary / non-manifold edges, non-manifold vertices, components, and the symmetric
 Hausdorff and mean distance to the input (vertices + face centroids sampled, exact
-point-to-triangle distances; :func:`anatomesh.core.measure.surface_distance`).
+point-to-triangle distances; :func:`anatomesh.core.geometry.measure.surface_distance`).
 
 Input: ``/work/shared/data/itkelastix_chest_ct`` (512x512x141 DICOM) read with
 ``anatomesh.core.load``, bone isosurface at 300 HU (``anatomesh.core.extract.isosurface``);
@@ -46,7 +46,7 @@ def bone_mesh(quick: bool, level: float):
 
 
 def run_anatomesh(v, f, ratio):
-    from anatomesh.core.decimate import decimate
+    from anatomesh.core.decimate.qem import decimate
 
     nv, nf, _, info = decimate(v, f, ratio=ratio, measure=False)
     return nv, nf
@@ -97,8 +97,8 @@ TOOLS = {"anatomesh": run_anatomesh, "fast_simplification": run_fast_simplificat
 
 
 def quality(v0, f0, v, f):
-    from anatomesh.core.measure import surface_distance
-    from anatomesh.core.mesh import topology
+    from anatomesh.core.geometry.measure import surface_distance
+    from anatomesh.core.model.mesh import topology
 
     t = topology(v, f)
     d = surface_distance(v0, f0, v, f)
@@ -109,7 +109,7 @@ def quality(v0, f0, v, f):
 
 def _warm_up():
     """Load (or compile) the numba kernels on a small sphere so the timings are steady state."""
-    from anatomesh.core.decimate import decimate
+    from anatomesh.core.decimate.qem import decimate
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
     from meshes import icosphere  # tests/meshes.py: the analytic test shapes
@@ -132,7 +132,7 @@ def run(argv=None):
 
     t0 = time.perf_counter()
     v, f = bone_mesh(args.quick, args.level)
-    from anatomesh.core.mesh import topology
+    from anatomesh.core.model.mesh import topology
     t_in = topology(v, f)
     source = "TotalSegmentator example CT" if args.quick else "chest CT"
     print(f"input: {source} bone isosurface at {args.level:g} HU: {len(f)} triangles, "

@@ -39,7 +39,7 @@ import numpy as np
 
 from anatomesh.core import load
 from anatomesh.core.extract.isosurface import isosurface
-from anatomesh.core.mesh import degenerate_faces, duplicate_vertices
+from anatomesh.core.model.mesh import degenerate_faces, duplicate_vertices
 
 DATA = Path(os.environ.get("ANATOMESH_SHARED_DATA",
                            Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -77,7 +77,7 @@ def pass_times(data, affine, level, repeat):
     numpy pass, interleaved: where the time goes."""
     import importlib
 
-    from anatomesh.core.extract import _mc_kernels as K
+    from anatomesh.core.extract import _isosurface_kernels as K
     from anatomesh.core.extract.mc_table import TRI_COUNT
 
     iso = importlib.import_module("anatomesh.core.extract.isosurface")

@@ -9,7 +9,7 @@ All tools run in this process with 2 threads (numba: ``set_num_threads(2)``; VTK
 ``vtkSMPTools`` STDThread backend, ``Initialize(2)``). Times are the best and the median of
 ``--repeat`` runs after one warm-up run. For each tool the script also counts how many per-label
 shells come out closed (every edge in exactly two faces) and 2-manifold (edges and vertices),
-using ``anatomesh.core.mesh.topology``:
+using ``anatomesh.core.model.mesh.topology``:
 
 * ours: ``SurfaceSet.shell(value)`` for every label;
 * vtkSurfaceNets3D: each label's faces picked from its output by the ``BoundaryLabels`` cell
@@ -53,7 +53,7 @@ def timed(fn, repeat):
 
 
 def shell_ok(vertices, faces):
-    from anatomesh.core.mesh import topology
+    from anatomesh.core.model.mesh import topology
 
     t = topology(vertices, faces)
     return t.closed, t.closed and t.manifold, t.closed and t.manifold and t.oriented
@@ -68,7 +68,7 @@ def count_ok(results):
 # tools
 # ---------------------------------------------------------------------------------------------
 def ours(arr, affine):
-    from anatomesh.core.extract.labels import label_surfaces
+    from anatomesh.core.extract.multilabel import label_surfaces
 
     return lambda: label_surfaces(arr, affine=affine)
 

@@ -29,11 +29,11 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
 sys.path.insert(0, str(REPO / "tests"))
 
-from anatomesh.core import printcheck as pc  # noqa: E402
+from anatomesh.core.printing import checks as pc
 from anatomesh.core.extract.isosurface import isosurface  # noqa: E402
-from anatomesh.core.extract.labels import label_surfaces  # noqa: E402
+from anatomesh.core.extract.multilabel import label_surfaces  # noqa: E402
 from anatomesh.core.io.load import load  # noqa: E402
-from anatomesh.core.spatial import TriangleGrid  # noqa: E402
+from anatomesh.core.geometry.spatial import TriangleGrid  # noqa: E402
 
 
 def toolbox_thickness(vertices, faces, grid=None, samples=6, seed=0):
@@ -80,7 +80,7 @@ def bench_label_map():
     print(f"  {len(meshes)} parts, {sum(m.n_faces for m in meshes):,} triangles")
     rep = timed("check_parts (fdm)", pc.check_parts, meshes, "fdm")
     _summary(rep)
-    from anatomesh.core.smooth import smooth_surfaces
+    from anatomesh.core.smooth.driver import smooth_surfaces
 
     try:
         sm, _ = smooth_surfaces(label_surfaces(vol), "organ")

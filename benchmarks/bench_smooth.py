@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from anatomesh.core import neighbors as N
-from anatomesh.core import smooth as S
+from anatomesh.core.geometry import neighbors as N
+from anatomesh.core.smooth import driver as S
 
 THREADS = 2
 
@@ -121,7 +121,7 @@ def label_map_surface(data: Path):
     """The 61-label TotalSegmentator map's SurfaceSet and its face groups as the add-on's
     ``operators.set_surface`` makes them."""
     from anatomesh.core import load
-    from anatomesh.core.extract.labels import label_surfaces
+    from anatomesh.core.extract.multilabel import label_surfaces
 
     ss = label_surfaces(load(data / "totalsegmentator" / "example_seg_fast_force_split.nii.gz"))
     fl = np.sort(ss.face_labels.astype(np.int64), axis=1)

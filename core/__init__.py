@@ -4,9 +4,9 @@ Public entry points::
 
     from anatomesh.core import load, isosurface, isosurfaces, label_surfaces
 """
-from .errors import AnatomeshError, Cancelled
-from .volume import LabelInfo, Volume
-from .mesh import Mesh, topology
+from .model.errors import AnatomeshError, Cancelled
+from .model.volume import LabelInfo, Volume
+from .model.mesh import Mesh, topology
 from .io import load
 from .extract import isosurface, isosurfaces, label_surfaces
 

@@ -1,7 +1,7 @@
 """The headless pipeline from Python: label map → decimated organs → STL, GLB, .blend and a PNG.
 
 The same job as ``anatomesh mesh --format stl,glb,blend,png``, through the Python API
-(:class:`anatomesh.core.pipeline.Recipe` and :func:`~anatomesh.core.pipeline.run`); the .blend is
+(:class:`anatomesh.app.run.Recipe` and :func:`~anatomesh.app.run.run`); the .blend is
 built by the add-on exactly as its Extract button builds it. Runs with Blender as a Python module
 or inside Blender, from a checkout of this repository::
 
@@ -62,8 +62,8 @@ def main():
     import bpy  # noqa: F401  (first: Blender's libraries load before any other native module)
 
     anatomesh_package()
-    from anatomesh.core.errors import AnatomeshError
-    from anatomesh.core.pipeline import Recipe, run
+    from anatomesh.core.model.errors import AnatomeshError
+    from anatomesh.app.run import Recipe, run
 
     labels = "all" if args.labels == "all" else [t.strip() for t in args.labels.split(",") if t.strip()]
     recipe = Recipe(input=args.input, labels=labels, out_dir=args.out, decimate=args.decimate,

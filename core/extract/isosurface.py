@@ -39,11 +39,11 @@ from typing import List, Optional, Sequence
 import numba
 import numpy as np
 
-from ..errors import AnatomeshError
-from ..mesh import Mesh
-from ..progress import Progress, report
-from ..volume import SPACES, Volume, convert_affine
-from . import _mc_kernels as K
+from ..model.errors import AnatomeshError
+from ..model.mesh import Mesh
+from ..model.progress import Progress, report
+from ..model.volume import SPACES, Volume, convert_affine
+from . import _isosurface_kernels as K
 from .mc_table import TRI_COUNT, TRI_EDGES
 
 #: clamp of the interpolation parameter along an edge (fraction of a voxel)
@@ -66,7 +66,7 @@ def isosurface(volume, level: float, affine: Optional[np.ndarray] = None, space:
     Parameters
     ----------
     volume : Volume or array_like, shape (I, J, K)
-        A :class:`~anatomesh.core.volume.Volume` or a 3D array of real numbers (any memory
+        A :class:`~anatomesh.core.model.volume.Volume` or a 3D array of real numbers (any memory
         layout; never copied unless its dtype is float16 or in non-native byte order).
     level : float
         Isovalue in the volume's units (e.g. HU); voxels with ``value >= level`` are inside.
@@ -78,7 +78,7 @@ def isosurface(volume, level: float, affine: Optional[np.ndarray] = None, space:
     cap : bool
         Close the surface where it leaves the grid (outside counts as below the level).
     progress : callable, optional
-        ``progress(fraction, text)``; may raise :class:`~anatomesh.core.errors.Cancelled`.
+        ``progress(fraction, text)``; may raise :class:`~anatomesh.core.model.errors.Cancelled`.
 
     Returns
     -------

@@ -6,9 +6,9 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from ..errors import AnatomeshError
-from ..volume import Volume
-from .labels import resolve_label_map
+from ..model.errors import AnatomeshError
+from ..model.volume import Volume
+from .label_tables import resolve_label_map
 
 
 def native(data: np.ndarray) -> np.ndarray:

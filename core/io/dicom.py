@@ -63,9 +63,9 @@ from pydicom import uid as _uid
 from pydicom.multival import MultiValue
 from pydicom.pixels import get_decoder, pixel_array
 
-from ..errors import AnatomeshError
-from ..progress import Progress, report, sub
-from ..volume import Volume, check_fits_in_memory
+from ..model.errors import AnatomeshError
+from ..model.progress import Progress, report, sub
+from ..model.volume import Volume, check_fits_in_memory
 
 PathLike = Union[str, os.PathLike]
 

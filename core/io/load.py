@@ -10,9 +10,9 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence, Union
 
-from ..errors import AnatomeshError
-from ..progress import Progress
-from ..volume import Volume
+from ..model.errors import AnatomeshError
+from ..model.progress import Progress
+from ..model.volume import Volume
 
 PathLike = Union[str, os.PathLike]
 

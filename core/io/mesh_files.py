@@ -14,8 +14,8 @@ from typing import List, Tuple
 
 import numpy as np
 
-from ..errors import AnatomeshError
-from ..mesh import Mesh
+from ..model.errors import AnatomeshError
+from ..model.mesh import Mesh
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj")
 _SPACE = re.compile(rb"SPACE=(RAS|LPS)")
@@ -42,7 +42,7 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> Tuple[np.ndarr
     e.g. after smoothing) the one face sharing a fan at a or b. Corners linked through paired
     half-edges form the fans; each fan gets its own vertex (same position). Returns (vertices (N', 3), faces (M, 3) int32).
     """
-    from ..mesh import directed_edges
+    from ..model.mesh import directed_edges
 
     v = np.asarray(vertices)
     f = np.asarray(faces, np.int64)
@@ -120,7 +120,7 @@ def _corner_roots(mate: np.ndarray, m: int) -> np.ndarray:
     """Fan id (3M,) of each corner: corner (face, k) sits at f[face, k] and its outgoing
     half-edge is row 3*face + k; the mate b->a of a->b ends at a, in its face at corner
     (row + 1) % 3. (A corner's incoming half-edge links it too: its mate's corner links back.)"""
-    from .._graph_kernels import union_find_roots
+    from ..geometry.graph import union_find_roots
 
     rows = np.flatnonzero(mate >= 0)
     mr = mate[rows]

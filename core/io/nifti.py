@@ -1,4 +1,4 @@
-"""NIfTI-1/-2 (``.nii``, ``.nii.gz``) → :class:`~anatomesh.core.volume.Volume`, with nibabel.
+"""NIfTI-1/-2 (``.nii``, ``.nii.gz``) → :class:`~anatomesh.core.model.volume.Volume`, with nibabel.
 
 Geometry is nibabel's: ``img.affine`` (the sform when its code is set, else the qform, else a
 fallback from the voxel sizes alone — then a warning says the orientation is unknown). The
@@ -20,8 +20,8 @@ from typing import List, Optional, Tuple
 
 import numpy as np
 
-from ..errors import AnatomeshError
-from ..volume import Volume, check_fits_in_memory
+from ..model.errors import AnatomeshError
+from ..model.volume import Volume, check_fits_in_memory
 from ._reader_common import finish_volume
 
 #: NIfTI spatial units → factor to mm
@@ -39,11 +39,11 @@ def read_nifti(path, volume_index: Optional[int] = None, labels=None,
     volume_index : int, optional
         For a 4D image, which volume to read (0-based).
     labels : path, optional
-        A label table (see :func:`anatomesh.core.io.labels.read_label_table`); makes the image a
+        A label table (see :func:`anatomesh.core.io.label_tables.read_label_table`); makes the image a
         label map. Without it, a sidecar table next to the file is used when the image is a label map.
     label_map : bool, optional
         Force (True) or forbid (False) a label map; by default decided by
-        :func:`~anatomesh.core.io.labels.looks_like_label_map` or the NIfTI intent ``label``.
+        :func:`~anatomesh.core.io.label_tables.looks_like_label_map` or the NIfTI intent ``label``.
 
     Returns
     -------

@@ -35,10 +35,10 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from ..errors import AnatomeshError
-from ..volume import LabelInfo, Volume, check_fits_in_memory
+from ..model.errors import AnatomeshError
+from ..model.volume import LabelInfo, Volume, check_fits_in_memory
 from ._reader_common import finish_volume
-from .labels import distinct_values, label_dtype
+from .label_tables import distinct_values, label_dtype
 
 _SPACES = {
     "left-posterior-superior": "LPS", "lps": "LPS",
@@ -79,7 +79,7 @@ def read_nrrd(path, labels=None, label_map: Optional[bool] = None) -> Volume:
         A label table; makes the image a label map and overrides segment names.
     label_map : bool, optional
         Force (True) or forbid (False) a label map; by default a segmentation always is one, and
-        other images are decided by :func:`~anatomesh.core.io.labels.looks_like_label_map`.
+        other images are decided by :func:`~anatomesh.core.io.label_tables.looks_like_label_map`.
 
     Returns
     -------

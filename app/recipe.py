@@ -1,0 +1,240 @@
+"""Recipe files: every setting of a run in a small TOML file (read with :mod:`tomllib`).
+
+The same settings the Blender panels hold and ``anatomesh mesh`` takes as flags, grouped by step::
+
+    [input]
+    path = "example_seg.nii.gz"        # relative paths are relative to this file's folder
+    labels = ["liver", "spleen", 3]    # or "all"
+    space = "RAS"
+
+    [smoothing]
+    method = "organ"
+
+    [decimation]
+    ratio = 0.5                        # or target_faces = N, or max_error_mm = 0.3
+
+    [check]
+    enabled = true
+    profile = "fdm"
+
+    [output]
+    dir = "out"
+    formats = ["stl", "3mf", "glb"]
+
+:func:`load_recipe` turns a file into a :class:`~anatomesh.app.run.Recipe` (unknown keys and
+wrongly typed values are one-line errors naming the key and what is allowed); :func:`dump_recipe`
+writes one back (by hand: TOML writing needs no extra dependency). ``anatomesh mesh`` stores the
+recipe of every run as ``recipe.toml`` next to its report, so ``anatomesh mesh --recipe
+OUT/recipe.toml`` runs it again.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Dict
+
+from ..core.model.errors import AnatomeshError
+from .run import Recipe
+
+#: TOML section → {TOML key: Recipe field}
+SECTIONS: Dict[str, Dict[str, str]] = {
+    "input": {"path": "input", "series": "series", "volume": "volume_index",
+              "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space"},
+    "surfaces": {"cap": "cap", "keep_largest": "keep_largest", "min_component_mm3": "min_component_mm3"},
+    "smoothing": {"method": "smooth", "iterations": "iterations", "lambda": "lam", "mu": "mu",
+                  "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
+                  "staircase": "staircase"},
+    "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
+    "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
+              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance"},
+    "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
+               "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
+}
+#: a comment written above each section
+_NOTES = {
+    "input": "scan or label map; labels: \"all\" or values/names; levels: isovalues of a scalar scan",
+    "surfaces": "isosurfaces capped at the volume's border; drop small components (mm3)",
+    "smoothing": "method: organ, light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
+                 "normal_median, none",
+    "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
+    "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
+             "(groups of labels), thicken, clearance_mm",
+    "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
+}
+#: Recipe fields holding paths (resolved against the recipe's folder)
+PATH_FIELDS = ("input", "label_table", "out_dir", "report")
+
+_NUMBER = "a number"
+#: Recipe field → (check, what is allowed), for the one-line type errors
+_TYPES = {
+    "input": (lambda v: isinstance(v, str) or (isinstance(v, list) and v and all(isinstance(x, str) for x in v)),
+              "a path or a list of paths"),
+    "series": (lambda v: isinstance(v, (str, int)) and not isinstance(v, bool), "a series UID or number"),
+    "volume_index": (lambda v: _is_int(v), "a whole number"),
+    "label_table": (lambda v: isinstance(v, str), "a path"),
+    "labels": (lambda v: v == "all" or (isinstance(v, list) and all(
+        isinstance(x, str) or _is_int(x) for x in v)), "\"all\" or a list of label values/names"),
+    "levels": (lambda v: isinstance(v, list) and all(_is_number(x) for x in v), "a list of numbers"),
+    "space": (lambda v: isinstance(v, str), "\"RAS\" or \"LPS\""),
+    "cap": (lambda v: isinstance(v, bool), "true or false"),
+    "keep_largest": (lambda v: isinstance(v, bool), "true or false"),
+    "min_component_mm3": (lambda v: _is_number(v), _NUMBER),
+    "smooth": (lambda v: isinstance(v, str), "a smoothing preset or method name"),
+    "iterations": (lambda v: _is_int(v), "a whole number"),
+    "lam": (lambda v: _is_number(v), _NUMBER),
+    "mu": (lambda v: _is_number(v), _NUMBER),
+    "max_deviation": (lambda v: _is_number(v), _NUMBER),
+    "damping_distance": (lambda v: _is_number(v), _NUMBER),
+    "staircase": (lambda v: isinstance(v, str), "\"auto\", \"on\" or \"off\""),
+    "decimate": (lambda v: _is_number(v), "a number in (0, 1]"),
+    "target_faces": (lambda v: _is_int(v), "a whole number"),
+    "max_error": (lambda v: _is_number(v), _NUMBER),
+    "check": (lambda v: isinstance(v, bool), "true or false"),
+    "profile": (lambda v: isinstance(v, str), "\"fdm\" or \"resin\""),
+    "min_wall": (lambda v: _is_number(v), _NUMBER),
+    "min_gap": (lambda v: _is_number(v), _NUMBER),
+    "fuse": (lambda v: isinstance(v, list) and all(isinstance(g, list) and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups, e.g. [[\"liver\", \"spleen\"]]"),
+    "thicken": (lambda v: isinstance(v, bool), "true or false"),
+    "clearance": (lambda v: _is_number(v), _NUMBER),
+    "out_dir": (lambda v: isinstance(v, str), "a folder path"),
+    "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
+    "report": (lambda v: isinstance(v, str), "a file path"),
+    "overwrite": (lambda v: isinstance(v, bool), "true or false"),
+    "render_samples": (lambda v: _is_int(v), "a whole number"),
+    "lod": (lambda v: _is_int(v), "a whole number (GLB levels of detail, 0: none)"),
+    "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
+                    "[width, height] in pixels"),
+}
+_FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
+                 "max_error", "min_wall", "min_gap", "clearance"}
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+# ---------------------------------------------------------------------------------------------
+def load_recipe(path) -> Recipe:
+    """Read a recipe TOML file into a :class:`Recipe`.
+
+    Relative paths in it (input, label table, output folder, report) are taken relative to the
+    file's folder. Keys not given keep :class:`Recipe`'s defaults. Raises :class:`AnatomeshError`
+    for a missing or malformed file, an unknown section or key (naming the allowed ones) or a
+    value of the wrong type.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise AnatomeshError("no such recipe file; check the path", path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise AnatomeshError(f"cannot read the recipe ({exc})", path) from None
+    return recipe_from_text(text, base=path.parent, source=path)
+
+
+def recipe_from_text(text: str, base=None, source=None) -> Recipe:
+    """:func:`load_recipe` on TOML text; relative paths resolve against ``base`` (if given)."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise AnatomeshError(f"not valid TOML ({exc}); fix the recipe file", source) from None
+    values = {}
+    for section, body in doc.items():
+        keys = SECTIONS.get(section)
+        if keys is None:
+            raise AnatomeshError(f"unknown recipe section [{section}]; allowed sections: "
+                                 f"{', '.join(SECTIONS)}", source)
+        if not isinstance(body, dict):
+            raise AnatomeshError(f"{section} must be a [{section}] section with keys "
+                                 f"{', '.join(keys)}", source)
+        for key, value in body.items():
+            name = keys.get(key)
+            if name is None:
+                raise AnatomeshError(f"unknown key {key!r} in [{section}]; allowed keys: "
+                                     f"{', '.join(keys)}", source)
+            ok, allowed = _TYPES[name]
+            if not ok(value):
+                raise AnatomeshError(f"[{section}] {key} must be {allowed}, got {value!r}", source)
+            if name in _FLOAT_FIELDS:
+                value = float(value)
+            if name == "levels":
+                value = [float(x) for x in value]
+            if name == "series":
+                value = str(value)
+            values[name] = value
+    if base is not None:
+        for name in PATH_FIELDS:
+            if values.get(name):
+                values[name] = _resolve(values[name], Path(base))
+    return Recipe(**values)
+
+
+def _resolve(value, base: Path):
+    if isinstance(value, list):
+        return [_resolve(v, base) for v in value]
+    p = Path(os.path.expanduser(value))
+    return str(p if p.is_absolute() else Path(os.path.abspath(base / p)))
+
+
+# ---------------------------------------------------------------------------------------------
+def dump_recipe(recipe: Recipe, base=None) -> str:
+    """The recipe as TOML text (sections as in :data:`SECTIONS`; settings that are None left out).
+
+    With ``base`` (the folder the file will be written to), paths are written relative to it, so
+    a folder holding a recipe and its scan can be moved as a whole; :func:`load_recipe` of the
+    written file gives back an equal :class:`Recipe` (paths absolute).
+    """
+    values = dataclasses.asdict(recipe)
+    if base is not None:
+        for name in PATH_FIELDS:
+            if values.get(name):
+                values[name] = _relative(values[name], Path(base))
+    lines = ["# Anatomesh recipe: run it with `anatomesh mesh --recipe THIS_FILE`",
+             "# (command-line flags override it; relative paths are relative to this file)"]
+    for section, keys in SECTIONS.items():
+        body = [f"{key} = {_toml_value(values[name])}" for key, name in keys.items()
+                if values[name] is not None]
+        if body:
+            lines += ["", f"# {_NOTES[section]}", f"[{section}]"] + body
+    return "\n".join(lines) + "\n"
+
+
+def _relative(value, base: Path):
+    if isinstance(value, list):
+        return [_relative(v, base) for v in value]
+    p = os.path.abspath(os.path.expanduser(str(value)))
+    b = os.path.abspath(base)
+    try:
+        common = os.path.commonpath([p, b])
+    except ValueError:  # another drive (Windows)
+        return p
+    if os.path.dirname(common) == common:  # only the filesystem root in common: keep it absolute
+        return p
+    return Path(os.path.relpath(p, b)).as_posix()
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)  # JSON's string escapes are TOML basic strings'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise AnatomeshError(f"cannot write {type(v).__name__} value {v!r} into a recipe")

@@ -1,0 +1,200 @@
+"""What a user needs to know about a scan before meshing it (``anatomesh inspect``).
+
+:func:`describe` returns plain JSON-ready facts; :func:`format_text` prints them for a terminal.
+"""
+from __future__ import annotations
+
+from typing import Dict, List
+
+import numpy as np
+
+from ..model.volume import Volume
+
+#: CT tissue classes by Hounsfield units, used to name histogram peaks
+CT_CLASSES = (
+    (-np.inf, -900.0, "air"),
+    (-900.0, -400.0, "lung"),
+    (-400.0, -200.0, "air/tissue mix"),
+    (-200.0, -30.0, "fat"),
+    (-30.0, 120.0, "soft tissue"),
+    (120.0, 300.0, "contrast / dense tissue"),
+    (300.0, np.inf, "bone"),
+)
+
+HIST_BINS = 48
+
+
+def describe(volume: Volume) -> Dict:
+    """Facts about a volume as a JSON-ready dict.
+
+    Keys: ``format``, ``modality``, ``shape``, ``spacing`` (mm), ``space``, ``orientation`` (3 letters),
+    ``affine`` (4x4 nested lists, voxel index → mm in ``space``), ``dtype``, ``min``, ``max``,
+    ``extent_mm`` (size of the voxel grid), ``histogram`` (scalar scans: ``edges``, ``counts``,
+    ``peaks``), ``labels`` (label maps: list of ``{value, name, color, voxels, volume_mm3}``),
+    ``warnings`` and ``meta``.
+    """
+    data = volume.data
+    finite = np.isfinite(data) if data.dtype.kind == "f" else None
+    vals = data[finite] if finite is not None and not finite.all() else data
+    facts = {
+        "format": volume.meta.get("format", "unknown"),
+        "modality": volume.meta.get("modality", "label map" if volume.is_label_map else "unknown"),
+        "shape": list(volume.shape),
+        "spacing": [round(s, 6) for s in volume.spacing],
+        "space": volume.space,
+        "orientation": volume.orientation(),
+        "affine": np.round(volume.affine, 6).tolist(),
+        "dtype": str(data.dtype),
+        "min": _num(vals.min()) if vals.size else None,
+        "max": _num(vals.max()) if vals.size else None,
+        "extent_mm": [round(float(s) * n, 3) for s, n in zip(volume.spacing, volume.shape)],
+        "warnings": list(volume.warnings),
+        "meta": {k: _jsonable(v) for k, v in volume.meta.items()},
+    }
+    if volume.is_label_map:
+        facts["labels"] = label_facts(volume)
+    else:
+        hounsfield = looks_like_hounsfield(vals)
+        if hounsfield and not volume.meta.get("modality"):
+            facts["modality"] = "CT (guessed from the Hounsfield value range)"
+        facts["histogram"] = histogram(vals, hounsfield)
+    return facts
+
+
+def label_facts(volume: Volume) -> List[Dict]:
+    """Each label present or named: value, name, colour, voxel count and volume in mm³."""
+    counts = np.bincount(np.asarray(volume.data, dtype=np.int64).ravel()) if volume.data.size else []
+    vox = volume.voxel_volume_mm3()
+    table = volume.labels or {}
+    values = sorted(set(int(v) for v in np.flatnonzero(counts)) | set(table))
+    out = []
+    for v in values:
+        if v == 0:
+            continue
+        n = int(counts[v]) if v < len(counts) else 0
+        info = table.get(v)
+        out.append({"value": v, "name": info.name if info else f"label_{v}",
+                    "color": [round(c, 4) for c in info.color] if info else None,
+                    "voxels": n, "volume_mm3": round(n * vox, 3)})
+    return out
+
+
+def histogram(values: np.ndarray, hounsfield: bool = False) -> Dict:
+    """A histogram of ``values`` with its peaks (local maxima of the smoothed counts).
+
+    Values in Hounsfield units (CT with air near -1000) use fixed bins from -1100 to 2000 HU so peaks
+    can be named (air, fat, soft tissue, bone); other scans (MR, CT stored without rescale) use bins
+    between the 0.1 and 99.9 percentiles and unnamed peaks.
+    """
+    v = np.asarray(values).ravel()
+    if v.size > 4_000_000:  # a strided sample is plenty for a histogram
+        v = v[:: v.size // 4_000_000 + 1]
+    is_ct = hounsfield
+    if is_ct:
+        lo, hi = -1100.0, 2000.0
+    else:
+        lo, hi = (float(x) for x in np.percentile(v, [0.1, 99.9])) if v.size else (0.0, 1.0)
+        if hi <= lo:
+            hi = lo + 1.0
+    counts, edges = np.histogram(np.clip(v, lo, hi), bins=HIST_BINS, range=(lo, hi))
+    peaks = []
+    for i in _peak_bins(counts):
+        centre = 0.5 * (edges[i] + edges[i + 1])
+        peak = {"value": round(float(centre), 2), "fraction": round(float(counts[i]) / max(1, v.size), 4)}
+        if is_ct:
+            peak["tissue"] = ct_class(centre)
+        peaks.append(peak)
+    return {"edges": [round(float(e), 3) for e in edges], "counts": counts.tolist(), "peaks": peaks}
+
+
+def looks_like_hounsfield(values: np.ndarray) -> bool:
+    """True when values look like CT Hounsfield units: air near -1000 and a soft-tissue body."""
+    if values.size == 0 or values.dtype.kind not in "iuf":
+        return False
+    lo = float(values.min())
+    hi = float(values.max())
+    return -3100.0 <= lo <= -900.0 and 100.0 <= hi <= 40000.0
+
+
+def ct_class(hu: float) -> str:
+    for lo, hi, name in CT_CLASSES:
+        if lo <= hu < hi:
+            return name
+    return "unknown"
+
+
+def _peak_bins(counts: np.ndarray, min_fraction: float = 0.005) -> List[int]:
+    """Bins that are local maxima of the 3-bin smoothed histogram and hold >= min_fraction."""
+    c = np.convolve(counts.astype(np.float64), [0.25, 0.5, 0.25], mode="same")
+    total = max(1.0, float(counts.sum()))
+    out = []
+    for i in range(len(c)):
+        left = c[i - 1] if i > 0 else -1.0
+        right = c[i + 1] if i + 1 < len(c) else -1.0
+        if c[i] > left and c[i] >= right and counts[i] / total >= min_fraction:
+            out.append(i)
+    return out
+
+
+def format_text(facts: Dict) -> str:
+    """Human-readable report of :func:`describe`'s facts."""
+    lines = [
+        f"format       {facts['format']}   modality {facts['modality']}",
+        f"shape        {' x '.join(str(s) for s in facts['shape'])} voxels   dtype {facts['dtype']}",
+        f"spacing      {' x '.join(f'{s:g}' for s in facts['spacing'])} mm   "
+        f"extent {' x '.join(f'{e:g}' for e in facts['extent_mm'])} mm",
+        f"orientation  {facts['orientation']} (voxel axes i, j, k point to these patient directions;"
+        f" coordinates in {facts['space']})",
+        "affine       voxel (i, j, k) -> mm in " + facts["space"],
+    ]
+    for row in facts["affine"]:
+        lines.append("             [" + "  ".join(f"{x:10.4f}" for x in row) + "]")
+    lines.append(f"values       {facts['min']} .. {facts['max']}")
+    if "histogram" in facts:
+        lines.append("histogram")
+        lines.extend(_text_histogram(facts["histogram"]))
+        peaks = facts["histogram"]["peaks"]
+        if peaks:
+            lines.append("peaks        " + ", ".join(
+                f"{p['value']:g}" + (f" ({p['tissue']})" if "tissue" in p else "") for p in peaks))
+    if "labels" in facts:
+        lines.append(f"labels       {len(facts['labels'])}")
+        lines.append(f"  {'value':>6}  {'name':<32} {'voxels':>10} {'volume mm3':>14}")
+        for lab in facts["labels"]:
+            lines.append(f"  {lab['value']:>6}  {lab['name']:<32} {lab['voxels']:>10} "
+                         f"{lab['volume_mm3']:>14.1f}")
+    for w in facts.get("warnings", []):
+        lines.append(f"warning      {w}")
+    return "\n".join(lines)
+
+
+def _text_histogram(hist: Dict, width: int = 50, rows: int = 16) -> List[str]:
+    counts = np.asarray(hist["counts"], dtype=np.float64)
+    edges = np.asarray(hist["edges"])
+    step = max(1, len(counts) // rows)
+    out = []
+    scale = np.log1p(counts).max() or 1.0
+    for i in range(0, len(counts), step):
+        c = counts[i:i + step].sum()
+        bar = "#" * int(round(width * np.log1p(c) / (scale + np.log(step))))
+        out.append(f"  {edges[i]:>9.1f} .. {edges[min(i + step, len(edges) - 1)]:>9.1f} |{bar}")
+    return out
+
+
+def _num(x):
+    x = x.item() if hasattr(x, "item") else x
+    return round(x, 6) if isinstance(x, float) else x
+
+
+def _jsonable(v):
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    return str(v)

@@ -1,0 +1,148 @@
+"""The Decimate panel's operators on the real 41-label TotalSegmentator map, through ``bpy.ops``:
+Apply decimates every organ with core (seams stay shared, shells closed, errors stored), the
+preview adds Blender's Decimate modifier, undo restores the objects."""
+from __future__ import annotations
+
+import sys
+
+import bpy
+import numpy as np
+import pytest
+from conftest import shared
+
+from anatomesh.core.model.mesh import topology
+
+
+@pytest.fixture
+def mods(addon):
+    name = addon.__name__
+    return sys.modules[name + ".addon.bridge"], sys.modules[name + ".addon.decimate_ui"]
+
+
+@pytest.fixture
+def scan(empty_scene):
+    seg = str(shared("totalsegmentator", "example_seg.nii.gz"))
+    table = str(shared("totalsegmentator", "label_names_total_and_total_mr.json"))
+    assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=True) == {"FINISHED"}
+    return bpy.data.collections[empty_scene.anatomesh.last_collection]
+
+
+def _faces(coll):
+    return {o.name: len(o.data.polygons) for o in coll.objects}
+
+
+def _shared_positions_agree(bridge, objs):
+    """Vertices with the same shared id (seams between organs) sit at one position in every
+    object; returns how many vertices are shared by two or more objects."""
+    vid = np.concatenate([bridge.point_attribute(o.data, "anatomesh_vid", "int") for o in objs])
+    own = np.concatenate([np.full(len(o.data.vertices), k) for k, o in enumerate(objs)])
+    pos = np.concatenate([bridge.positions(o.data) for o in objs])
+    order = np.lexsort((own, vid))
+    same = vid[order][1:] == vid[order][:-1]
+    np.testing.assert_array_equal(pos[order][1:][same], pos[order][:-1][same])
+    cross = same & (own[order][1:] != own[order][:-1])
+    return int(cross.sum())
+
+
+def _interface_faces(bridge, objs):
+    """Triangles (as sorted shared-id triples) used by two objects, per object pair."""
+    seen = {}
+    for k, o in enumerate(objs):
+        vid = bridge.point_attribute(o.data, "anatomesh_vid", "int")
+        for tri in map(tuple, np.sort(vid[bridge.triangles(o.data)], axis=1).tolist()):
+            seen.setdefault(tri, []).append(k)
+    return {t: ks for t, ks in seen.items() if len(ks) > 1}
+
+
+def test_apply_fewer_faces_seams_shared_errors_stored_and_undo(scan, mods):
+    bridge, ui = mods
+    objs = list(scan.objects)
+    name = scan.name
+    before = _faces(scan)
+    shared_before = _shared_positions_agree(bridge, objs)
+    assert shared_before > 1000                          # organs touch in this map
+    bpy.ops.ed.undo_push(message="extracted")
+    # smooth first: Apply decimates the shape shown and bakes it
+    scan.anatomesh.smooth_iterations = 5
+    assert bpy.ops.anatomesh.decimate_apply(collection=scan.name, target="RATIO",
+                                            ratio=0.2) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="decimated")
+    after = _faces(scan)
+    assert all(after[n] < before[n] for n in before)
+    assert sum(after.values()) < 0.35 * sum(before.values())
+    assert scan.anatomesh.smooth_iterations == 0
+    # seams: shared vertices identical, and each interface triangle used by exactly two organs
+    assert _shared_positions_agree(bridge, objs) > 100
+    inter = _interface_faces(bridge, objs)
+    assert len(inter) > 100 and all(len(ks) == 2 and ks[0] != ks[1] for ks in inter.values())
+    for o in objs:
+        v, f = bridge.arrays(o.data)
+        t = topology(v, f)
+        assert t.closed and t.manifold and t.oriented, (o.name, t)
+        np.testing.assert_array_equal(bridge.point_attribute(o.data, "anatomesh_rest"), v)
+        assert o["anatomesh_faces_before"] == before[o.name]
+        assert 0.0 < o["anatomesh_decimation_mean_error_mm"] <= o["anatomesh_decimation_max_error_mm"] < 6.0
+        assert "anatomesh_decimation_volume_change_pct" in o
+    # undo brings the extracted (smoothed) objects back
+    bpy.ops.ed.undo()
+    assert _faces(bpy.data.collections[name]) == before
+
+
+def test_max_error_target_is_honoured_per_organ(scan, mods):
+    bridge, _ = mods
+    before = _faces(scan)
+    assert bpy.ops.anatomesh.decimate_apply(collection=scan.name, target="ERROR",
+                                            max_error=1.5) == {"FINISHED"}
+    for o in scan.objects:
+        assert o["anatomesh_decimation_max_error_mm"] <= 1.5
+        assert len(o.data.polygons) <= before[o.name]
+    assert sum(_faces(scan).values()) < 0.8 * sum(before.values())
+    assert scan["anatomesh_decimation_max_error_mm"] <= 1.5
+    # the live cache was rebuilt from the decimated objects: smoothing still works on them
+    scan.anatomesh.smooth_iterations = 3
+    assert _shared_positions_agree(bridge, list(scan.objects)) > 100
+
+
+def test_preview_modifier_then_apply_removes_it(scan, mods):
+    _, ui = mods
+    settings = bpy.context.scene.anatomesh_decimate
+    assert bpy.ops.anatomesh.decimate_preview(collection=scan.name, target="FACES",
+                                              faces=20000) == {"FINISHED"}
+    objs = list(scan.objects)
+    total = sum(len(o.data.polygons) for o in objs)
+    mods_ = [o.modifiers[ui.PREVIEW_MODIFIER] for o in objs]
+    assert all(m.type == "DECIMATE" and m.ratio == pytest.approx(20000 / total, rel=1e-5) for m in mods_)
+    deps = bpy.context.evaluated_depsgraph_get()
+    shown = sum(len(o.evaluated_get(deps).data.polygons) for o in objs)
+    assert shown < 0.5 * total                         # non-destructive: the data is untouched
+    assert sum(len(o.data.polygons) for o in objs) == total
+    # with a preview on, changing the ratio in the panel settings updates the modifiers
+    bpy.context.view_layer.active_layer_collection = \
+        bpy.context.view_layer.layer_collection.children[scan.name]
+    settings.target, settings.ratio = "RATIO", 0.3
+    assert objs[0].modifiers[ui.PREVIEW_MODIFIER].ratio == pytest.approx(0.3)
+    assert bpy.ops.anatomesh.decimate_apply(collection=scan.name, target="RATIO", ratio=0.3) == {"FINISHED"}
+    assert not any(ui.PREVIEW_MODIFIER in o.modifiers for o in objs)
+
+
+def test_errors_are_reported_not_raised(empty_scene):
+    with pytest.raises(RuntimeError, match="no scan collection"):
+        bpy.ops.anatomesh.decimate_apply(collection="nope")
+
+
+def test_objects_reassemble_into_the_extracted_surface_set(scan, mods):
+    """The shells on the objects give back core's SurfaceSet: same faces (interfaces once), same
+    pinch-point split rows; the panel class is registered in the sidebar tab."""
+    from anatomesh.core.extract.multilabel import label_surfaces
+    from anatomesh.core.io import load
+
+    _, ui = mods
+    ss, members = ui.surface_set_from_objects(list(scan.objects))
+    core = label_surfaces(load(shared("totalsegmentator", "example_seg.nii.gz")))
+    assert ss.n_faces == core.n_faces and ss.n_vertices == core.n_vertices
+    assert len(ss.splits) == len(core.splits) > 0
+    for value, shell in zip(ss.values(), ss.shells()):
+        t = topology(shell.vertices, shell.faces)
+        assert t.closed and t.manifold and t.oriented, (members[value - 1].name, t)
+        assert shell.n_faces == len(members[value - 1].data.polygons)
+    assert bpy.types.ANATOMESH_PT_decimate.bl_category == "Anatomesh"

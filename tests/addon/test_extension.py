@@ -1,0 +1,85 @@
+"""The extension package: the manifest validates, and the built zip installs into a fresh Blender."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import tomllib
+import zipfile
+
+from conftest import REPO, shared  # tests/conftest.py
+
+sys.path.insert(0, str(REPO / "tools"))
+import build_extension  # noqa: E402
+
+sys.path.pop(0)
+
+
+def test_manifest_validates():
+    ext = build_extension.find_blender_ext()
+    out = subprocess.run([sys.executable, str(ext), "validate", str(REPO)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
+    text = (REPO / "blender_manifest.toml").read_text()
+    wheels = build_extension.manifest_wheels(text)
+    assert wheels and not any("numpy" in w for w in wheels)  # Blender ships numpy
+    for plat in ("win_amd64", "manylinux", "macosx"):
+        assert any(plat in w and "numba" in w for w in wheels), plat
+    stripped = tomllib.loads(build_extension.strip_wheels(text))
+    assert "wheels" not in stripped and "platforms" not in stripped and stripped["id"] == "anatomesh"
+    assert stripped["blender_version_min"] == "4.2.0" and stripped["permissions"]["files"]
+
+
+def test_no_wheels_zip_installs_and_enables(tmp_path):
+    """Build with tools/build_extension.py --no-wheels; install it in a fresh Blender (subprocess)."""
+    seg = str(shared("totalsegmentator", "example_seg.nii.gz"))
+    table = str(shared("totalsegmentator", "label_names_total_and_total_mr.json"))
+    (zip_path,) = build_extension.build(tmp_path / "dist", wheels=False, work=tmp_path / "work")
+    names = zipfile.ZipFile(zip_path).namelist()
+    assert "blender_manifest.toml" in names and "addon/operators.py" in names and "core/model/mesh.py" in names and "app/run.py" in names
+    assert not any(n.startswith(("tests/", "benchmarks/", "tools/", "data/", "examples/", ".")) for n in names)
+    assert not any("__pycache__" in n for n in names)
+    script = textwrap.dedent(f"""
+        import os
+        os.environ["BLENDER_USER_RESOURCES"] = {str(tmp_path / "user")!r}
+        import bpy, addon_utils
+        assert bpy.ops.extensions.package_install_files(
+            filepath={str(zip_path)!r}, repo="user_default", enable_on_install=True) == {{"FINISHED"}}
+        mod = "bl_ext.user_default.anatomesh"
+        assert addon_utils.check(mod) == (True, True), addon_utils.check(mod)
+        bpy.ops.wm.read_homefile(use_empty=True)
+        r = bpy.ops.anatomesh.import_scan(filepath={seg!r}, label_table={table!r}, extract=False)
+        s = bpy.context.scene.anatomesh
+        print("RESULT", sorted(r), len(s.labels), s.labels[0].name)
+    """)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "RESULT ['FINISHED'] 41 spleen" in out.stdout
+
+
+def test_example_script_runs_headless(tmp_path):
+    """examples/blender_import_labels.py as `python script.py options` (bpy module), no render."""
+    out = subprocess.run([sys.executable, str(REPO / "examples" / "blender_import_labels.py"), "--out",
+                          str(tmp_path), "--iterations", "2", "--no-render"],
+                         capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "41 surfaces in 'example_seg'" in out.stdout
+    assert (tmp_path / "example_seg.blend").stat().st_size > 100_000
+
+
+def test_example_runs_as_blender_runs_it(tmp_path):
+    """examples/pipeline_to_blend.py the way `blender -b -P script.py -- options` runs it: bpy
+    already imported, Blender's own arguments before "--", the script run as __main__."""
+    script = REPO / "examples" / "pipeline_to_blend.py"
+    launcher = textwrap.dedent(f"""
+        import runpy, sys
+        import bpy
+        sys.argv = ["blender", "-b", "-P", {str(script)!r}, "--", "--out", {str(tmp_path)!r},
+                    "--labels", "liver,spleen", "--samples", "1"]
+        runpy.run_path({str(script)!r}, run_name="__main__")
+    """)
+    out = subprocess.run([sys.executable, "-c", launcher], capture_output=True, text=True,
+                         timeout=600, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert "2 surfaces" in out.stdout
+    names = {p.name for p in tmp_path.iterdir()}
+    assert {"liver.stl", "spleen.stl", "example_seg.glb", "example_seg.blend", "example_seg.png"} <= names

@@ -1,0 +1,42 @@
+"""Exporters write what they say: space and units in headers, exact geometry round trip."""
+import numpy as np
+
+from anatomesh.core.export.mesh_files import read_stl, write_mesh
+from anatomesh.core.model.mesh import Mesh
+from helpers.meshes import icosphere
+
+
+def _mesh(space="LPS"):
+    v, f = icosphere(2, 25.0)
+    return Mesh(v + [100.0, -50.0, 20.0], f, normals=v / 25.0, name="liver", value=5, space=space)
+
+
+def test_stl_round_trip_and_header(tmp_path):
+    m = _mesh()
+    p = write_mesh(m, tmp_path / "liver.stl")
+    data = read_stl(p)
+    assert b"SPACE=LPS" in data["header"] and b"UNITS=mm" in data["header"]
+    np.testing.assert_array_equal(data["triangles"], m.vertices[m.faces])
+    assert not list(tmp_path.glob("*.part"))
+
+
+def test_ply_binary_round_trip(tmp_path):
+    m = _mesh("RAS")
+    p = write_mesh(m, tmp_path / "liver.ply")
+    raw = p.read_bytes()
+    head, body = raw.split(b"end_header\n", 1)
+    assert b"comment SPACE=RAS" in head and b"element face %d" % m.n_faces in head
+    vert = np.frombuffer(body[: m.n_vertices * 24], "<f4").reshape(-1, 6)
+    np.testing.assert_array_equal(vert[:, :3], m.vertices)
+    faces = np.frombuffer(body[m.n_vertices * 24:], dtype=[("n", "u1"), ("i", "<i4", 3)])
+    assert (faces["n"] == 3).all()
+    np.testing.assert_array_equal(faces["i"], m.faces)
+
+
+def test_obj_text(tmp_path):
+    m = _mesh()
+    p = write_mesh(m, tmp_path / "x.obj")
+    lines = p.read_text().splitlines()
+    assert lines[0] == "# anatomesh SPACE=LPS UNITS=mm"
+    assert sum(1 for ln in lines if ln.startswith("v ")) == m.n_vertices
+    assert sum(1 for ln in lines if ln.startswith("f ")) == m.n_faces

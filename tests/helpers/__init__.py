@@ -1,0 +1,1 @@
+"""Shared test helpers: analytic meshes, synthetic DICOM series, slow reference implementations."""
