@@ -146,7 +146,7 @@ def chosen_labels(settings, volume, text: str) -> List[Tuple[int, str, Tuple[flo
     ``text``: "" → the included rows of the label list; "all" → every label present; else values
     and/or names separated by commas (names match case-insensitively).
     """
-    from ..app.run import select_labels
+    from ..core.model.labels import select_labels
 
     rows = {item.value: item for item in settings.labels}
     table = volume.labels or {}
@@ -578,7 +578,7 @@ def _slug(name: str) -> str:
 def object_meshes(context, objects) -> list:
     """Core :class:`Mesh` copies of ``objects`` as evaluated (modifiers applied), world mm, with
     name, label value, space and the label colour (sRGB, as the label table gives it)."""
-    from ..core.export.common import linear_to_srgb
+    from ..core.model.labels import linear_to_srgb
     from ..core.model.mesh import Mesh
 
     depsgraph = context.evaluated_depsgraph_get()

@@ -111,7 +111,7 @@ def smoothing_to_ui(recipe) -> dict:
 
 def apply_recipe(context, recipe, extract: bool = False) -> None:
     """Put a recipe's settings into the scene; read its scan and tick its labels / levels."""
-    from ..app.run import select_labels
+    from ..core.model.labels import select_labels
 
     s = context.scene.anatomesh
     inp = recipe.input[0] if isinstance(recipe.input, list) else recipe.input

@@ -21,7 +21,7 @@ from typing import Dict, Iterable, Optional, Sequence
 import bpy
 import numpy as np
 
-from ..core.export.common import srgb_to_linear
+from ..core.model.labels import srgb_to_linear
 from . import bridge
 
 #: custom properties set on every surface object

@@ -15,23 +15,24 @@ report, ``recipe.toml`` holds the recipe, so ``anatomesh mesh --recipe OUT/recip
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import json
 import re
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Union
+from typing import Dict, List, Optional, Union
 
 import numpy as np
 
+from ..core.geometry import topology as topolib
 from ..core.model import mesh as meshlib
 from ..core.model.errors import AnatomeshError
 from ..core.io.describe import describe
 from ..core.io import load
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
-from ..core.model.volume import LabelInfo, Volume
+from ..core.model.volume import Volume
+from ..core.model.labels import LabelInfo, select_labels
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # core.smooth.DEFAULT: Taubin in the voxel cell, volumes kept
@@ -455,33 +456,11 @@ def scan_stem(volume: Volume, recipe: Recipe) -> str:
     return _slug(base)
 
 
-def select_labels(volume: Volume, wanted: Union[str, Sequence[Union[int, str]]]) -> Optional[List[int]]:
-    """Label values for ``wanted`` ("all", values, or names matched case-insensitively)."""
-    if wanted in (None, "all", ["all"]):
-        return None
-    table = volume.labels or {}
-    by_name = {info.name.lower(): v for v, info in table.items()}
-    values = []
-    for w in wanted:
-        if isinstance(w, (int, np.integer)) or str(w).strip().isdigit():
-            values.append(int(w))
-            continue
-        key = str(w).strip().lower()
-        if key not in by_name:
-            close = difflib.get_close_matches(key, list(by_name), n=5, cutoff=0.6)
-            close += [n for n in by_name if key in n and n not in close][:5]
-            hint = f"; did you mean {', '.join(close)}?" if close else \
-                "; run `anatomesh inspect` to list the labels"
-            raise AnatomeshError(f"no label named {w!r}{hint}", volume.meta.get("source"))
-        values.append(by_name[key])
-    return values
-
-
 def _clean(m: Mesh, recipe: Recipe) -> Dict:
     """Apply keep-largest / min-component to ``m`` in place; returns what was dropped."""
     dropped = []
     if m.n_faces and (recipe.keep_largest or recipe.min_component_mm3 > 0):
-        comps = meshlib.component_measures(m.vertices, m.faces)
+        comps = topolib.component_measures(m.vertices, m.faces)
         keep = []
         for i, c in enumerate(comps):
             if (recipe.keep_largest and i > 0) or abs(c["volume_mm3"]) < recipe.min_component_mm3:
@@ -553,7 +532,7 @@ def write_lods(final, recipe: Recipe, paths: List[Path], title: str, base: Path,
     """
     if not paths:
         return []
-    from ..core.export.mesh_files import SCENE_FORMATS
+    from ..core.export import SCENE_FORMATS
     from ..core.decimate.progressive import progressive
 
     ratios = [0.5 ** i for i in range(len(paths) - 1, 0, -1)]  # coarsest first, 1.0 implied
@@ -582,13 +561,13 @@ def _scene_writers(formats) -> Dict:
     if not need:
         return {}
     try:
-        from ..core.export.mesh_files import SCENE_FORMATS
+        from ..core.export import SCENE_FORMATS
     except ImportError:
         SCENE_FORMATS = {}
     missing = [f for f in need if f not in SCENE_FORMATS]
     if missing:
         raise AnatomeshError(f"{', '.join(missing)} output is not available in this installation "
-                             "(anatomesh.core.export.mesh_files.SCENE_FORMATS); use stl, ply or obj")
+                             "(anatomesh.core.export.SCENE_FORMATS); use stl, ply or obj")
     return {f: SCENE_FORMATS[f] for f in need}
 
 
@@ -627,8 +606,8 @@ def build_report(volume: Volume, recipe: Recipe, surfaces: List[Mesh], entries: 
            "surfaces": []}
     out["files"].update(report=_rel(report_path, base), recipe=_rel(report_path.parent / RECIPE_FILE, base))
     for m, extra, fs in zip(surfaces, entries, files):
-        topo = meshlib.topology(m.vertices, m.faces)
-        comps = meshlib.face_components(m.faces, m.n_vertices)[0] if m.n_faces else 0
+        topo = topolib.topology(m.vertices, m.faces)
+        comps = topolib.face_components(m.faces, m.n_vertices)[0] if m.n_faces else 0
         out["surfaces"].append({
             "value": m.value, "name": m.name, "color": list(m.color),
             "files": {fmt: _rel(p, base) for fmt, p in fs.items()},

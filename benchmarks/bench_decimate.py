@@ -98,7 +98,7 @@ TOOLS = {"anatomesh": run_anatomesh, "fast_simplification": run_fast_simplificat
 
 def quality(v0, f0, v, f):
     from anatomesh.core.geometry.measure import surface_distance
-    from anatomesh.core.model.mesh import topology
+    from anatomesh.core.geometry.topology import topology
 
     t = topology(v, f)
     d = surface_distance(v0, f0, v, f)
@@ -132,7 +132,7 @@ def run(argv=None):
 
     t0 = time.perf_counter()
     v, f = bone_mesh(args.quick, args.level)
-    from anatomesh.core.model.mesh import topology
+    from anatomesh.core.geometry.topology import topology
     t_in = topology(v, f)
     source = "TotalSegmentator example CT" if args.quick else "chest CT"
     print(f"input: {source} bone isosurface at {args.level:g} HU: {len(f)} triangles, "

@@ -53,7 +53,7 @@ def timed(fn, repeat):
 
 
 def shell_ok(vertices, faces):
-    from anatomesh.core.model.mesh import topology
+    from anatomesh.core.geometry.topology import topology
 
     t = topology(vertices, faces)
     return t.closed, t.closed and t.manifold, t.closed and t.manifold and t.oriented

@@ -34,6 +34,7 @@ from anatomesh.core.extract.isosurface import isosurface  # noqa: E402
 from anatomesh.core.extract.multilabel import label_surfaces  # noqa: E402
 from anatomesh.core.io.load import load  # noqa: E402
 from anatomesh.core.geometry.spatial import TriangleGrid  # noqa: E402
+from anatomesh.core.geometry.intersections import self_intersections  # noqa: E402
 
 
 def toolbox_thickness(vertices, faces, grid=None, samples=6, seed=0):
@@ -129,7 +130,7 @@ def bench_large():
     v, f = m.vertices, m.faces
     print(f"  {m.n_faces:,} triangles, {m.n_vertices:,} vertices")
     g = timed("grid", TriangleGrid, v, f)
-    timed("self_intersections", pc.self_intersections, v, f)
+    timed("self_intersections", self_intersections, v, f)
     wt = timed("wall_thickness (cap 5 mm)", pc.wall_thickness, v, f, g, 5.0)
     timed("thin_regions", pc.thin_regions, v, f, wt, 0.8)
     tb = timed("toolbox 6 rays/face", toolbox_thickness, v, f, g)

@@ -17,7 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from typing import Dict, List
+
 from ...core.model.errors import AnatomeshError
+from ...core.printing.checks import GAP_REPORT_MM
+from ..check import read_parts
 
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 
@@ -69,7 +73,7 @@ def cmd_check(args) -> int:
                              "and/or --separate MM")
     prof = pc.resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     progress = TerminalProgress("checking")
-    meshes = pc.read_parts(args.path)
+    meshes = read_parts(args.path)
     fixes = []
     if fixing:
         meshes, fixes = _apply_fixes(meshes, args)
@@ -90,7 +94,7 @@ def cmd_check(args) -> int:
                                  path) from None
     for f in fixes:
         print(f"fixed {f['name']}: {f['summary']} -> {f['file']}")
-    for line in pc.summary_lines(rep):
+    for line in summary_lines(rep):
         print(line)
     if args.report:
         print(f"report {args.report}")
@@ -149,3 +153,46 @@ if __name__ == "__main__":  # pragma: no cover
     from .main import main
 
     sys.exit(main(["check"] + sys.argv[1:]))
+
+
+def summary_lines(rep: Dict) -> List[str]:
+    """A short human summary of a :func:`check_parts` report, one problem per line."""
+    prof = rep["profile"]
+    lines = [f"profile {prof['name']}: min wall {prof['min_wall']} mm, min gap {prof['min_gap']} mm"]
+    for p in rep["parts"]:
+        problems = []
+        if not p["closed"]:
+            problems.append("not closed")
+        if not p["manifold"]:
+            problems.append("not manifold")
+        if not p.get("oriented", True):
+            problems.append("inconsistent normals")
+        if p["self_intersections"]:
+            problems.append(f"{p['self_intersections']} self-intersecting faces")
+        if p.get("degenerate_faces"):
+            problems.append(f"{p['degenerate_faces']} degenerate faces")
+        if p.get("tiny_shells"):
+            problems.append(f"{len(p['tiny_shells'])} tiny shells")
+        if p.get("thin_regions"):
+            r = p["thin_regions"][0]
+            problems.append(f"thin: {p['thin_area_mm2']:.1f} mm² below {prof['min_wall']} mm "
+                            f"(thinnest {r['min_mm']} mm at {r['min_location']})")
+        if p.get("part_intersections"):
+            problems.append(f"crosses {p['part_intersections']} other part(s)")
+        wall = "?" if p["min_wall_mm"] is None else f"{p['min_wall_mm']:.2f}"
+        state = "ok  " if p["passed"] else "FAIL"
+        lines.append(f"{state} {p['name']} (min wall {wall} mm)" +
+                     (": " + "; ".join(problems) if problems else ""))
+    for g in rep["gaps"]:
+        if g.get("intersecting"):
+            lines.append(f"FAIL {g['a']} and {g['b']} intersect at {g['location']}")
+        elif g["fuses"]:
+            lines.append(f"FAIL {g['a']} – {g['b']}: {g['clearance_mm']} mm apart at "
+                         f"{g.get('clearance_location', g['location'])} (< {prof['min_gap']} mm: fuses)")
+    n_touch = sum(bool(g["touching"]) for g in rep["gaps"])
+    n_close = len(rep["gaps"]) - n_touch
+    n_ok = sum(p["passed"] for p in rep["parts"])
+    lines.append(f"{'PASSED' if rep['passed'] else 'FAILED'}: {n_ok}/{len(rep['parts'])} parts pass; "
+                 f"{n_touch} touching pairs (shared seams), {n_close} other pairs closer than "
+                 f"{GAP_REPORT_MM:g} mm")
+    return lines

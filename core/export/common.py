@@ -1,7 +1,10 @@
-"""Input checks and colour helpers shared by the scene writers (3MF, GLB)."""
+"""Shared by the writers: input checks of the scene writers (3MF, GLB) and atomic file writing."""
 from __future__ import annotations
 
-from typing import List, Sequence, Tuple
+import os
+from contextlib import contextmanager
+from pathlib import Path
+from typing import List, Sequence
 
 import numpy as np
 
@@ -37,23 +40,22 @@ def check_meshes(meshes: Sequence[Mesh], path, fmt: str) -> List[Mesh]:
     return meshes
 
 
-def rgba(color) -> Tuple[float, float, float, float]:
-    """``Mesh.color`` (RGB or RGBA, 0..1) as four floats clipped to 0..1 (alpha 1 if missing)."""
-    c = [float(x) for x in tuple(color)[:4]]
-    if len(c) < 3 or not all(np.isfinite(c)):
-        c = [0.8, 0.8, 0.8]
-    if len(c) == 3:
-        c.append(1.0)
-    return tuple(min(1.0, max(0.0, x)) for x in c)
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """sRGB-encoded 0..1 values to linear light (IEC 61966-2-1)."""
-    c = np.asarray(c, np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(c: np.ndarray) -> np.ndarray:
-    """Linear light 0..1 to sRGB encoding (inverse of :func:`srgb_to_linear`)."""
-    c = np.asarray(c, np.float64)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.maximum(c, 0) ** (1 / 2.4) - 0.055)
+@contextmanager
+def atomic_write(path):
+    """Open ``path + '.part'`` for binary writing and rename it onto ``path`` on success only, so
+    an interrupted write never leaves a half-written file under the final name."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = open(tmp, "wb")
+    except OSError as exc:
+        raise AnatomeshError(f"cannot write here ({exc.strerror}); choose another output folder",
+                             path) from None
+    try:
+        with fh:
+            yield fh
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    os.replace(tmp, path)

@@ -38,7 +38,8 @@ from typing import Dict, List, Sequence
 
 import numpy as np
 
-from .common import check_meshes, linear_to_srgb, rgba, srgb_to_linear
+from .common import atomic_write, check_meshes
+from ..model.labels import linear_to_srgb, rgba, srgb_to_linear
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
 
@@ -74,7 +75,6 @@ def write_glb(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         For an empty list, mixed or unknown spaces, a mesh without triangles, NaN/infinite
         vertices, face indices out of range, more than 4 GiB of data, or an unwritable path.
     """
-    from .mesh_files import _atomic  # here: core.export imports this module for SCENE_FORMATS
 
     path = Path(path)
     meshes = check_meshes(meshes, path, "GLB")
@@ -125,7 +125,7 @@ def write_glb(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
     if total >= 2 ** 32:
         raise AnatomeshError("the surfaces need more than 4 GiB, the GLB limit; decimate them or "
                              "export fewer", path)
-    with _atomic(path) as fh:
+    with atomic_write(path) as fh:
         fh.write(struct.pack("<4sII", b"glTF", 2, total))
         fh.write(struct.pack("<I4s", len(body), b"JSON"))
         fh.write(body)
@@ -141,7 +141,7 @@ def _unit_normals(m: Mesh) -> np.ndarray:
     if m.normals is not None and len(m.normals) == m.n_vertices:
         n = m.normals.astype(np.float64)
     else:
-        from ..printing.checks import vertex_normals
+        from ..model.mesh import vertex_normals
 
         n = vertex_normals(m.vertices, m.faces)
     ln = np.linalg.norm(n, axis=1, keepdims=True)

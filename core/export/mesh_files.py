@@ -7,14 +7,14 @@ interrupted export never leaves a half-written file under the final name.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Dict, Optional
+from typing import Optional
 
 import numpy as np
 
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
+from .common import atomic_write
 
 FORMATS = ("stl", "ply", "obj")
 
@@ -46,7 +46,7 @@ def write_stl(mesh: Mesh, path) -> None:
     rec = np.zeros(len(f), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
     rec["n"] = n
     rec["v"] = tri
-    with _atomic(path) as fh:
+    with atomic_write(path) as fh:
         fh.write(stl_header(mesh))
         fh.write(np.uint32(len(f)).tobytes())
         fh.write(rec.tobytes())
@@ -66,7 +66,7 @@ def write_ply(mesh: Mesh, path) -> None:
     faces = np.zeros(len(mesh.faces), dtype=[("n", "u1"), ("i", "<i4", 3)])
     faces["n"] = 3
     faces["i"] = mesh.faces
-    with _atomic(path) as fh:
+    with atomic_write(path) as fh:
         fh.write(("\n".join(header) + "\n").encode("ascii", "replace"))
         fh.write(np.ascontiguousarray(vert).tobytes())
         fh.write(faces.tobytes())
@@ -82,45 +82,5 @@ def write_obj(mesh: Mesh, path) -> None:
         body += ["f %d//%d %d//%d %d//%d" % (a, a, b, b, c, c) for a, b, c in f1.tolist()]
     else:
         body += ["f %d %d %d" % tuple(t) for t in f1.tolist()]
-    with _atomic(path) as fh:
+    with atomic_write(path) as fh:
         fh.write(("\n".join(lines + body) + "\n").encode())
-
-
-def read_stl(path) -> Dict:
-    """Read a binary STL written by any tool: ``{"header": bytes, "triangles": (M,3,3) float32}``."""
-    data = Path(path).read_bytes()
-    n = int(np.frombuffer(data[80:84], "<u4")[0])
-    rec = np.frombuffer(data[84:84 + 50 * n], dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
-    return {"header": data[:80], "triangles": rec["v"].copy()}
-
-
-class _atomic:
-    """Open ``path + '.part'`` for binary writing; rename onto ``path`` on success only."""
-
-    def __init__(self, path):
-        self.path = Path(path)
-        self.tmp = self.path.with_name(self.path.name + ".part")
-
-    def __enter__(self):
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self.fh = open(self.tmp, "wb")
-        except OSError as exc:
-            raise AnatomeshError(f"cannot write here ({exc.strerror}); choose another output folder",
-                                 self.path) from None
-        return self.fh
-
-    def __exit__(self, exc_type, exc, tb):
-        self.fh.close()
-        if exc_type is None:
-            os.replace(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-        return False
-
-
-# Writers that take all surfaces at once (one file per scene); imported last, they use _atomic.
-from .threemf import write_3mf  # noqa: E402
-from .gltf import write_glb  # noqa: E402
-
-SCENE_FORMATS = {"3mf": write_3mf, "glb": write_glb}

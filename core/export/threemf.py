@@ -31,7 +31,8 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from .common import check_meshes, rgba
+from .common import atomic_write, check_meshes
+from ..model.labels import rgba
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
 
@@ -83,7 +84,6 @@ def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         vertices, face indices out of range, a triangle with a repeated vertex (3MF forbids it),
         or an unwritable path.
     """
-    from .mesh_files import _atomic  # here: core.export imports this module for SCENE_FORMATS
 
     path = Path(path)
     meshes = check_meshes(meshes, path, "3MF")
@@ -93,7 +93,7 @@ def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
             raise AnatomeshError(f"surface {m.name!r} has triangles with a repeated vertex, which "
                                  f"3MF forbids; clean the mesh (drop degenerate faces) first", path)
     big = sum(55 * m.n_vertices + 50 * m.n_faces for m in meshes) > 2 ** 31 - 2 ** 26
-    with _atomic(path) as fh:
+    with atomic_write(path) as fh:
         with zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED, compresslevel=COMPRESSLEVEL) as zf:
             zf.writestr("[Content_Types].xml", _CONTENT_TYPES)
             zf.writestr("_rels/.rels", _RELS)

@@ -19,10 +19,11 @@ import numba
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..io.label_tables import distinct_color, label_table_for
+from ..model.labels import distinct_color, label_table_for
 from ..model.progress import Progress, report
 from ..model.surfaceset import SurfaceSet
-from ..model.volume import SPACES, LabelInfo, Volume, convert_affine
+from ..model.volume import SPACES, Volume, convert_affine
+from ..model.labels import LabelInfo
 from . import _multilabel_kernels as K
 from .shell_table import tables
 

@@ -21,7 +21,8 @@ import numpy as np
 from . import _measure_kernels as _k
 from . import spatial as _spatial
 from ..model.errors import AnatomeshError
-from ..model.mesh import degenerate_faces, signed_volume, surface_area, topology
+from ..model.mesh import degenerate_faces, signed_volume, surface_area
+from .topology import topology
 from .neighbors import check_faces, structure as _structure
 
 

@@ -172,6 +172,31 @@ class TriangleGrid:
             votes += n % 2
         return votes >= 2
 
+    def shrinking_balls(self, points: np.ndarray, inward: np.ndarray, r0: np.ndarray, *,
+                        min_sep_cos: float, max_iter: int = 40, tol: float = 1e-6):
+        """Largest empty balls touching surface points, centres along the inward directions
+        (shrinking ball, Ma, Bae & Kobbelt 2012, "3D medial axis point approximation using nearest
+        neighbors and the normal field").
+
+        ``points`` (P, 3) mm on the surface, ``inward`` (P, 3) unit directions, ``r0`` (P,) start
+        radii mm. A nearest surface point seen from the centre within the separation angle
+        (cos > ``min_sep_cos``) of the start belongs to the same side and stops the shrinking.
+        Returns ``(radius (P,) mm, empty (P,) bool)``; empty: the final ball holds no surface."""
+        return _k.shrinking_ball(_as_points(points), _as_points(inward, "inward"),
+                                 np.ascontiguousarray(r0, np.float64), self.vertices, self.faces,
+                                 self.origin, self.cell_size, self.dims, self.start, self.items,
+                                 float(min_sep_cos), int(max_iter), float(tol))
+
+    def ball_cover(self, centres: np.ndarray, radii: np.ndarray, pad: float, ids: np.ndarray,
+                   out: np.ndarray) -> None:
+        """For a grid over points (degenerate triangles (i, i, i)): raise ``out[ids[item]]`` to
+        each ball's diameter for every point within radius + ``pad`` of its centre (Hildebrand &
+        Rüegsegger 1997 local thickness). ``centres`` (B, 3) mm, ``radii`` (B,) mm, ``ids`` maps
+        this grid's items to ``out``'s index, ``out`` float64 updated in place."""
+        _k.cover_max(_as_points(centres, "centres"), np.ascontiguousarray(radii, np.float64),
+                     float(pad), self.vertices, self.origin, self.cell_size, self.dims, self.start,
+                     np.ascontiguousarray(ids, np.int32), out)
+
 
 def point_triangle_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
                             max_distance=np.inf) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:

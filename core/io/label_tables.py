@@ -1,4 +1,4 @@
-"""Label maps: label tables, the anatomical palette, and deciding what is a label map.
+"""Label maps: reading label tables, and deciding what is a label map.
 
 A *label map* is a volume of non-negative integers where each value names a structure and
 ``0`` is background (never listed in a table). This module
@@ -8,8 +8,7 @@ A *label map* is a volume of non-negative integers where each value names a stru
   blocks, 3D Slicer colour tables (``.ctbl``/``.txt``: ``value name r g b a``, 0-255, and the
   ``.csv`` form) and ITK-SNAP label description files (``IDX R G B A VIS MSH "LABEL"``);
 * finds a table stored next to an image (:func:`find_sidecar`);
-* colours structures by name (:func:`anatomical_color`) or, failing that, with distinct hues
-  spaced by the golden ratio (:func:`label_table_for`);
+* names the structures and colours them with :func:`anatomesh.core.model.labels.label_table_for`;
 * decides whether an image is a label map (:func:`looks_like_label_map`) and attaches its table
   (:func:`resolve_label_map`, used by the NIfTI and NRRD readers).
 
@@ -20,158 +19,24 @@ alone: TotalSegmentator names are used only when such a table is given or found 
 """
 from __future__ import annotations
 
-import colorsys
 import csv
 import json
 import re
 from pathlib import Path
-from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterable, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.volume import LabelInfo
+from ..model.labels import LabelInfo, label_table_for, name_tokens
 
 #: images with more distinct values than this are not taken for label maps unless forced
 MAX_AUTO_LABELS = 512
 #: a forced label map (``label_map=True`` or a table given) may hold at most this many values
 MAX_LABELS = 65535
 
-_GOLDEN = 0.618033988749895
 _TABLE_HELP = ("expected a TotalSegmentator JSON ({\"5\": \"liver\", ...}), a 3D Slicer colour table "
                "(lines 'value name r g b a', 0-255) or an ITK-SNAP label description file")
-
-
-# ------------------------------------------------------------------------------------------
-# the anatomical palette
-# ------------------------------------------------------------------------------------------
-# (keywords, rgb in [0, 1]); the first rule with a keyword matching the name wins, so specific
-# rules (pulmonary vessels, cysts, tumours, discs) come before broad ones (vein, kidney, bone).
-# Pulmonary arteries are blue and pulmonary veins red, as in anatomical illustration
-# (oxygen-poor / oxygen-rich blood); every other artery is red and every other vein blue.
-_IVORY = (0.93, 0.89, 0.78)
-_PALETTE: Tuple[Tuple[Tuple[str, ...], Tuple[float, float, float]], ...] = (
-    (("tumour", "tumor", "lesion", "cancer", "carcinoma", "metastasis", "metastases",
-      "neoplasm", "nodule"), (0.15, 0.9, 0.2)),
-    (("cyst",), (0.85, 0.88, 0.55)),
-    (("intervertebral", "disc", "discs", "cartilage", "cartilages", "meniscus"), (0.72, 0.84, 0.9)),
-    (("pulmonary artery", "pulmonary trunk"), (0.3, 0.4, 0.85)),
-    (("pulmonary vein",), (0.85, 0.15, 0.15)),
-    (("vein", "veins", "vena", "venous", "portal"), (0.2, 0.3, 0.8)),
-    (("artery", "arteries", "arterial", "aorta", "aortic", "carotid", "trunk", "lumen"),
-     (0.85, 0.1, 0.1)),
-    (("heart", "myocardium", "cardiac", "atrium", "atrial", "ventricle", "appendage"),
-     (0.65, 0.22, 0.18)),
-    (("spinal cord", "nerve", "nerves", "plexus"), (0.95, 0.85, 0.4)),
-    (("bone", "bones", "vertebra", "vertebrae", "rib", "ribs", "skull", "cranium", "mandible",
-      "maxilla", "femur", "hip", "pelvis", "sacrum", "coccyx", "sternum", "clavicula",
-      "clavicle", "scapula", "humerus", "radius", "ulna", "tibia", "fibula", "patella",
-      "skeleton", "spine"), _IVORY),
-    (("liver", "hepatic"), (0.55, 0.27, 0.17)),
-    (("spleen", "splenic"), (0.5, 0.13, 0.3)),
-    (("kidney", "kidneys", "renal"), (0.72, 0.33, 0.27)),
-    (("lung", "lungs", "pulmonary"), (0.96, 0.66, 0.7)),
-    (("brain", "cerebrum", "cerebellum", "cortex", "brainstem", "thalamus"), (0.86, 0.74, 0.74)),
-    (("muscle", "muscles", "gluteus", "iliopsoas", "psoas", "autochthon", "erector",
-      "diaphragm", "quadriceps", "sartorius"), (0.75, 0.22, 0.22)),
-    (("stomach", "colon", "bowel", "duodenum", "esophagus", "oesophagus", "intestine",
-      "rectum", "ileum", "jejunum", "cecum", "caecum", "appendix", "gut"), (0.92, 0.72, 0.6)),
-    (("pancreas", "pancreatic"), (0.95, 0.8, 0.42)),
-    (("gallbladder", "gall", "bile", "biliary"), (0.3, 0.6, 0.22)),
-    (("urinary bladder", "bladder", "urinary", "ureter"), (0.95, 0.88, 0.3)),
-    (("adrenal",), (0.95, 0.55, 0.12)),
-    (("thyroid", "parathyroid"), (0.78, 0.3, 0.38)),
-    (("trachea", "bronchus", "bronchi", "airway", "airways", "larynx"), (0.7, 0.8, 0.86)),
-    (("fat", "adipose"), (1.0, 0.88, 0.45)),
-    (("skin", "body"), (0.94, 0.76, 0.64)),
-    (("prostate", "uterus", "ovary", "testis"), (0.86, 0.58, 0.55)),
-    (("eye", "eyeball", "lens"), (0.9, 0.92, 0.95)),
-)
-
-
-def _tokens(name: str) -> List[str]:
-    """Lower-case words of a name: 'kidney_cyst_left' → ['kidney', 'cyst', 'left']."""
-    spaced = re.sub(r"([a-z])([A-Z])", r"\1 \2", str(name))  # LeftKidney → Left Kidney
-    return [t for t in re.split(r"[^a-z0-9]+", spaced.lower()) if t]
-
-
-def _matches(keyword: str, tokens: Sequence[str], joined: str) -> bool:
-    words = keyword.split()
-    if len(words) > 1:  # a phrase: consecutive tokens
-        n = len(words)
-        return any(list(tokens[i:i + n]) == words for i in range(len(tokens) - n + 1))
-    if keyword in tokens:
-        return True
-    if len(keyword) >= 5:  # long keywords also match inside glued words ("leftkidney")
-        return keyword in joined
-    return False
-
-
-def anatomical_color(name: str) -> Optional[Tuple[float, float, float]]:
-    """The conventional colour (r, g, b in [0, 1]) of a structure, chosen from keywords in its name.
-
-    Bones ivory, arteries red, veins blue (pulmonary vessels the other way round, as in
-    anatomical illustration), liver brown, spleen dark purple-red, kidneys reddish brown, lungs
-    pink, heart red-brown, brain pinkish grey, muscles red, gut beige, pancreas yellowish,
-    gallbladder green, urinary bladder yellow, adrenals orange, trachea light blue-grey, fat
-    yellow, skin/body skin tone, tumours/lesions bright green, cysts pale yellow-green.
-
-    Returns None when no keyword matches (the caller picks a distinct colour).
-
-    >>> anatomical_color("vertebrae_L3") == anatomical_color("rib_left_1")
-    True
-    """
-    tokens = _tokens(name)
-    joined = "".join(tokens)
-    for keywords, rgb in _PALETTE:
-        if any(_matches(k, tokens, joined) for k in keywords):
-            return rgb
-    return None
-
-
-def distinct_color(value: int) -> Tuple[float, float, float]:
-    """A saturated colour for ``value``: hues spaced by the golden ratio, so consecutive values differ."""
-    hue = (int(value) * _GOLDEN) % 1.0
-    return tuple(float(c) for c in colorsys.hsv_to_rgb(hue, 0.6, 0.9))
-
-
-def _shade(rgb, value: int) -> Tuple[float, float, float]:
-    """Scale brightness by 0.88-1.12, fixed per value: neighbours of one class (vertebrae, ribs) differ a little."""
-    f = 0.88 + 0.24 * ((int(value) * _GOLDEN) % 1.0)
-    return tuple(float(min(1.0, max(0.0, c * f))) for c in rgb)
-
-
-def label_table_for(values: Iterable[int],
-                    names: Optional[Mapping[int, Union[str, LabelInfo]]] = None) -> Dict[int, LabelInfo]:
-    """A label table for the non-zero ``values``: names from ``names``, colours from the palette.
-
-    Parameters
-    ----------
-    values : iterable of int
-        Label values present in a map; 0 (background) is skipped.
-    names : mapping int → str or LabelInfo, optional
-        Known names. A :class:`LabelInfo` keeps its own colour (e.g. from a colour table);
-        a plain name gets :func:`anatomical_color` (shaded a little per value) or, when no
-        keyword matches, :func:`distinct_color`. Values without a name are ``label_<value>``.
-
-    Returns
-    -------
-    dict int → LabelInfo, sorted by value. Deterministic: the same value and name always get
-    the same colour.
-    """
-    names = names or {}
-    out: Dict[int, LabelInfo] = {}
-    for v in sorted({int(v) for v in values}):
-        if v == 0:
-            continue
-        entry = names.get(v)
-        if isinstance(entry, LabelInfo):
-            out[v] = LabelInfo(v, entry.name, tuple(float(c) for c in entry.color))
-            continue
-        name = str(entry) if entry is not None and str(entry).strip() else f"label_{v}"
-        base = anatomical_color(name) if entry is not None else None
-        out[v] = LabelInfo(v, name, _shade(base, v) if base is not None else distinct_color(v))
-    return out
 
 
 # ------------------------------------------------------------------------------------------
@@ -303,10 +168,10 @@ def _pick_table(tables: Dict[str, Dict[int, str]], values, hint, p: Path):
     if len(candidates) > 1 and hint:
         # prefer the table sharing most words with the file name and having fewest words that
         # are not in it: 'example_seg_mr' → 'total_mr', 'example_seg' → 'total'
-        words = set(_tokens(image_stem(hint)))
+        words = set(name_tokens(image_stem(hint)))
 
         def score(k):
-            kw = set(_tokens(k))
+            kw = set(name_tokens(k))
             return len(kw & words) - len(kw - words)
 
         chosen = max(candidates, key=score)  # ties: file order

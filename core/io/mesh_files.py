@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import List, Tuple
+from typing import Dict, List, Tuple
 
 import numpy as np
 
@@ -42,7 +42,7 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> Tuple[np.ndarr
     e.g. after smoothing) the one face sharing a fan at a or b. Corners linked through paired
     half-edges form the fans; each fan gets its own vertex (same position). Returns (vertices (N', 3), faces (M, 3) int32).
     """
-    from ..model.mesh import directed_edges
+    from ..geometry.topology import directed_edges
 
     v = np.asarray(vertices)
     f = np.asarray(faces, np.int64)
@@ -120,7 +120,7 @@ def _corner_roots(mate: np.ndarray, m: int) -> np.ndarray:
     """Fan id (3M,) of each corner: corner (face, k) sits at f[face, k] and its outgoing
     half-edge is row 3*face + k; the mate b->a of a->b ends at a, in its face at corner
     (row + 1) % 3. (A corner's incoming half-edge links it too: its mate's corner links back.)"""
-    from ..geometry.graph import union_find_roots
+    from ..geometry.kernels import union_find_roots
 
     rows = np.flatnonzero(mate >= 0)
     mr = mate[rows]
@@ -304,3 +304,11 @@ def _read_obj(data: bytes):
             faces.extend(_fan(idx))
     v = np.array(verts, np.float64).reshape(-1, 3)
     return v, np.array(faces, np.int64).reshape(-1, 3).astype(np.int32), _space(data[:4096])
+
+
+def read_stl(path) -> Dict:
+    """Read a binary STL written by any tool: ``{"header": bytes, "triangles": (M,3,3) float32}``."""
+    data = Path(path).read_bytes()
+    n = int(np.frombuffer(data[80:84], "<u4")[0])
+    rec = np.frombuffer(data[84:84 + 50 * n], dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    return {"header": data[:80], "triangles": rec["v"].copy()}

@@ -36,7 +36,8 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.volume import LabelInfo, Volume, check_fits_in_memory
+from ..model.volume import Volume, check_fits_in_memory
+from ..model.labels import LabelInfo
 from ._reader_common import finish_volume
 from .label_tables import distinct_values, label_dtype
 

@@ -11,9 +11,11 @@ Topology (seed §6.2.1): for a closed 2-manifold with ``C`` components, Euler ch
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
+
+from .errors import AnatomeshError
 
 
 @dataclass
@@ -51,43 +53,6 @@ class Mesh:
 # ---------------------------------------------------------------------------------------------
 # edges
 # ---------------------------------------------------------------------------------------------
-def directed_edges(faces: np.ndarray) -> np.ndarray:
-    """All half-edges (3M, 2) int64 as (from, to), in face order: face f gives rows 3f..3f+2."""
-    f = np.asarray(faces, dtype=np.int64)
-    return np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
-
-
-def _edge_keys(a: np.ndarray, b: np.ndarray, n_vertices: int) -> np.ndarray:
-    lo = np.minimum(a, b)
-    hi = np.maximum(a, b)
-    return lo * np.int64(max(n_vertices, 1)) + hi
-
-
-def edge_face_counts(faces: np.ndarray, n_vertices: int):
-    """Undirected edges with how many faces use them and their net orientation.
-
-    Returns
-    -------
-    edges : (E, 2) int64, sorted vertex pairs (lo, hi)
-    count : (E,) int64, faces using each edge
-    balance : (E,) int64, (#half-edges lo→hi) − (#hi→lo); 0 for every edge of a consistently
-        oriented closed manifold.
-    """
-    he = directed_edges(faces)
-    if he.size == 0:
-        z = np.zeros(0, np.int64)
-        return np.zeros((0, 2), np.int64), z, z
-    keys = _edge_keys(he[:, 0], he[:, 1], n_vertices)
-    sign = np.where(he[:, 0] < he[:, 1], 1, -1)
-    order = np.argsort(keys, kind="stable")
-    ks = keys[order]
-    starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
-    count = np.diff(np.r_[starts, ks.size])
-    balance = np.add.reduceat(sign[order], starts)
-    uk = ks[starts]
-    n = np.int64(max(n_vertices, 1))
-    edges = np.stack([uk // n, uk % n], axis=1)
-    return edges, count, balance
 
 
 # ---------------------------------------------------------------------------------------------
@@ -147,111 +112,6 @@ def duplicate_vertices(vertices: np.ndarray, faces: Optional[np.ndarray] = None)
 # ---------------------------------------------------------------------------------------------
 # components and topology
 # ---------------------------------------------------------------------------------------------
-def face_components(faces: np.ndarray, n_vertices: int) -> Tuple[int, np.ndarray]:
-    """Connected components of faces through shared vertices.
-
-    Returns ``(n_components, labels)`` with ``labels`` (M,) int64 in [0, n_components).
-    Faces touching only at a vertex count as connected (printing-wise they are one part).
-    """
-    f = np.asarray(faces, dtype=np.int64)
-    m = f.shape[0]
-    if m == 0:
-        return 0, np.zeros(0, np.int64)
-    parent = _connected_vertex_roots(np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]], n_vertices)
-    roots = parent[f[:, 0]]
-    uniq, lab = np.unique(roots, return_inverse=True)
-    return int(uniq.size), lab.astype(np.int64)
-
-
-def _connected_vertex_roots(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """Component representative (smallest member) of each of ``n`` nodes, edges (a[i], b[i])."""
-    from ..geometry.graph import union_find_roots
-
-    return union_find_roots(np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64), int(n))
-
-
-@dataclass
-class Topology:
-    """Invariants of one triangle mesh (see :func:`topology`)."""
-
-    vertices: int
-    faces: int
-    edges: int
-    components: int
-    euler: int
-    genus: Optional[int]
-    closed: bool
-    manifold: bool
-    oriented: bool
-    boundary_edges: int
-    nonmanifold_edges: int
-    nonmanifold_vertices: int
-    degenerate_faces: int
-
-    def as_dict(self) -> Dict:
-        return dict(self.__dict__)
-
-
-def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> Topology:
-    """Check a mesh: closed, 2-manifold (edges and vertices), consistently oriented, genus.
-
-    * closed: every edge has exactly two faces;
-    * manifold: no edge has more than two faces and every vertex's faces form one fan;
-    * oriented: every edge used once in each direction (needs closed + manifold);
-    * genus: ``(2C − χ) / 2`` for closed manifolds, else None.
-    Only vertices used by faces count in V.
-    """
-    f = np.asarray(faces, dtype=np.int64)
-    nv_all = int(np.asarray(vertices).shape[0])
-    edges, count, balance = edge_face_counts(f, nv_all)
-    used = np.unique(f.ravel()) if f.size else np.zeros(0, np.int64)
-    V, E, F = int(used.size), int(edges.shape[0]), int(f.shape[0])
-    boundary = int(np.count_nonzero(count == 1))
-    nm_edges = int(np.count_nonzero(count > 2))
-    closed = boundary == 0 and nm_edges == 0 and F > 0
-    nm_verts = nonmanifold_vertices(f, nv_all).size
-    manifold = nm_edges == 0 and nm_verts == 0
-    oriented = bool(np.all(balance[count == 2] == 0)) if E else True
-    ncomp, _ = face_components(f, nv_all)
-    euler = V - E + F
-    genus = None
-    if closed and manifold and (2 * ncomp - euler) % 2 == 0:
-        genus = (2 * ncomp - euler) // 2
-    ndeg = int(degenerate_faces(vertices, f, min_area).size) if F else 0
-    return Topology(V, F, E, ncomp, euler, genus, closed, manifold, oriented, boundary,
-                    nm_edges, int(nm_verts), ndeg)
-
-
-def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
-    """Vertices whose incident faces form more than one fan (pinch points), ascending int64.
-
-    For each vertex, the faces around it are linked through the edges they share at that vertex;
-    a manifold vertex has exactly one linked group. Works on any mesh (boundaries allowed).
-    """
-    from ..geometry._neighbors_kernels import fan_counts, vertex_faces
-
-    f = np.ascontiguousarray(faces, dtype=np.int64)
-    if f.shape[0] == 0:
-        return np.zeros(0, np.int64)
-    vf_offsets, vf = vertex_faces(f, np.int64(max(n_vertices, int(f.max()) + 1)))
-    return np.flatnonzero(fan_counts(f, vf_offsets, vf) > 1).astype(np.int64)
-
-
-def component_measures(vertices: np.ndarray, faces: np.ndarray) -> List[Dict]:
-    """Per connected component: faces, area (mm²), volume (mm³), sorted by volume descending.
-
-    Each entry is ``{"faces": index array, "area_mm2": float, "volume_mm3": float}``.
-    """
-    f = np.asarray(faces)
-    n, lab = face_components(f, len(vertices))
-    out = []
-    areas = face_areas(vertices, f)
-    for c in range(n):
-        idx = np.flatnonzero(lab == c)
-        out.append({"faces": idx, "area_mm2": float(areas[idx].sum()),
-                    "volume_mm3": signed_volume(vertices, f[idx])})
-    out.sort(key=lambda d: -abs(d["volume_mm3"]))
-    return out
 
 
 def compact(vertices: np.ndarray, faces: np.ndarray, normals: Optional[np.ndarray] = None):
@@ -263,3 +123,51 @@ def compact(vertices: np.ndarray, faces: np.ndarray, normals: Optional[np.ndarra
     nf = remap[f].astype(np.int32)
     nn = None if normals is None else np.asarray(normals)[used]
     return np.asarray(vertices)[used], nf, nn, used
+
+
+def check_arrays(vertices, faces) -> Tuple[np.ndarray, np.ndarray]:
+    v = np.asarray(vertices, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise AnatomeshError(f"vertices must be an (N, 3) array in mm, got shape {v.shape}")
+    f = np.asarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise AnatomeshError(f"faces must be an (M, 3) integer array, got shape {f.shape}")
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise AnatomeshError(f"faces refer to vertex {int(f.max())} but the mesh has {len(v)} "
+                             f"vertices: pass the matching vertex array")
+    if not np.all(np.isfinite(v)):
+        raise AnatomeshError("vertices contain NaN or infinite coordinates: the mesh is corrupt")
+    return np.ascontiguousarray(v), np.ascontiguousarray(f, dtype=np.int32)
+
+
+def weld_ids(vertices: np.ndarray) -> np.ndarray:
+    """An id (N,) int64 per vertex, equal for vertices at exactly the same position."""
+    v = np.asarray(vertices)
+    if len(v) == 0:
+        return np.zeros(0, np.int64)
+    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
+    vs = v[order]
+    new = np.r_[True, np.any(vs[1:] != vs[:-1], axis=1)]
+    ids = np.empty(len(v), np.int64)
+    ids[order] = np.cumsum(new) - 1
+    return ids
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (N, 3) float64 (zero for unused vertices)."""
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length = 2 * area
+    n = np.zeros((len(v), 3))
+    for k in range(3):
+        for a in range(3):
+            n[:, a] += np.bincount(f[:, k], weights=fn[:, a], minlength=len(v))
+    ln = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
+
+
+def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """A third of the area of each vertex's faces, (N,) mm² (sums to the surface area)."""
+    f = np.asarray(faces, np.int64)
+    a = face_areas(vertices, f) / 3.0
+    return np.bincount(f.ravel(), weights=np.repeat(a, 3), minlength=len(vertices))

@@ -6,23 +6,27 @@ built from the set have bit-identical seams. A label's closed shell is a *view*:
 oriented outward, with a few vertex copies (``splits``) that keep the shell 2-manifold where the
 label touches itself along an edge or at a point (see ``extract/shell_table.py``).
 
-Each vertex keeps the lattice point it came from: lattice point (a, b, c) sits at voxel-index
-position (a - 0.5, b - 0.5, c - 0.5), a voxel corner. Constrained smoothing (Gibson 1998,
+Each vertex of a label map's set keeps the lattice point it came from: lattice point (a, b, c)
+sits at voxel-index position (a - 0.5, b - 0.5, c - 0.5), a voxel corner. Constrained smoothing (Gibson 1998,
 "Constrained elastic surface nets") keeps each vertex inside its *cell*, the voxel-sized box
 index-space [a - 1, a] x [b - 1, b] x [c - 1, c] mapped to mm by ``affine``.
+
+Independent surfaces (isosurfaces of a scan, one per level; meshes read from files) form a set
+too (:meth:`SurfaceSet.from_meshes`): surface k is label k + 1 against the background, with no
+shared vertices and no lattice. So every stage takes one type.
 """
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Dict, List, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
 from . import _surfaceset_kernels as K
 from .errors import AnatomeshError
 from .mesh import Mesh
-from .volume import LabelInfo
+from .labels import LabelInfo
 
 
 @dataclass
@@ -39,8 +43,9 @@ class SurfaceSet:
     face_labels : int32 (M, 2)
         (inside, outside) label values of each triangle. The background value (``background``,
         stored as is) is only ever the outside label.
-    lattice : int32 (N, 3)
-        Lattice point of each vertex (see module docstring).
+    lattice : int32 (N, 3) or None
+        Lattice point of each vertex (see module docstring); None for a set of independent
+        surfaces (:meth:`from_meshes`), whose vertices are not on a voxel lattice.
     affine : float64 (4, 4)
         The volume's voxel index → mm affine (at voxel centres).
     space : "RAS" or "LPS"
@@ -57,6 +62,9 @@ class SurfaceSet:
         Voxels of each label value present (the raw shells enclose exactly count x voxel volume).
     warnings : list[str]
         Problems that did not stop extraction (e.g. a requested label not in the volume).
+    shell_values : dict[int, float]
+        The ``value`` a label's shell reports when it is not the label itself (the isovalue of
+        an isosurface set's label); empty for label maps.
     """
 
     vertices: np.ndarray
@@ -70,16 +78,40 @@ class SurfaceSet:
     background: int = 0
     voxel_counts: Dict[int, int] = field(default_factory=dict)
     warnings: List[str] = field(default_factory=list)
+    shell_values: Dict[int, float] = field(default_factory=dict)
 
     def __post_init__(self):
         self.vertices = np.ascontiguousarray(self.vertices, np.float32).reshape(-1, 3)
         self.faces = np.ascontiguousarray(self.faces, np.int32).reshape(-1, 3)
         self.face_labels = np.ascontiguousarray(self.face_labels, np.int32).reshape(-1, 2)
-        self.lattice = np.ascontiguousarray(self.lattice, np.int32).reshape(-1, 3)
+        if self.lattice is not None:
+            self.lattice = np.ascontiguousarray(self.lattice, np.int32).reshape(-1, 3)
         self.affine = np.asarray(self.affine, np.float64)
         self.splits = np.ascontiguousarray(self.splits, np.int32).reshape(-1, 4)
-        if len(self.lattice) != len(self.vertices) or len(self.face_labels) != len(self.faces):
+        if (self.lattice is not None and len(self.lattice) != len(self.vertices)) or \
+                len(self.face_labels) != len(self.faces):
             raise ValueError("vertices/lattice or faces/face_labels lengths differ")
+
+    @classmethod
+    def from_meshes(cls, meshes: Sequence[Mesh], affine: np.ndarray, space: str = "RAS") -> "SurfaceSet":
+        """Independent surfaces as one set: mesh k becomes label k + 1 (faces inside k + 1,
+        outside the background 0), vertices stacked, no lattice. Each shell gives back its mesh
+        (name, colour, ``value``; ``meta["vertex_ids"]`` into the stacked vertices).
+
+        ``affine``: the voxel → mm matrix of the volume the surfaces came from (smoothing boxes
+        each vertex in a voxel around its start); ``space`` the meshes' space."""
+        meshes = list(meshes)
+        sizes = [m.n_vertices for m in meshes]
+        offsets = np.cumsum([0] + sizes)
+        faces = [m.faces.astype(np.int64) + o for m, o in zip(meshes, offsets[:-1])]
+        labels = [np.tile(np.array([[k + 1, 0]], np.int32), (m.n_faces, 1)) for k, m in enumerate(meshes)]
+        table = {k + 1: LabelInfo(k + 1, m.name or f"surface {k + 1}", tuple(m.color))
+                 for k, m in enumerate(meshes)}
+        return cls(np.concatenate([m.vertices for m in meshes] or [np.zeros((0, 3))]),
+                   np.concatenate(faces or [np.zeros((0, 3), np.int64)]),
+                   np.concatenate(labels or [np.zeros((0, 2), np.int32)]), None, affine, space,
+                   table, shell_values={k + 1: m.value for k, m in enumerate(meshes)
+                                        if m.value is not None})
 
     def __repr__(self) -> str:
         return (f"SurfaceSet({self.n_vertices:,} vertices, {self.n_faces:,} faces, "
@@ -146,7 +178,8 @@ class SurfaceSet:
                                  copy_index.astype(np.int64).reshape(-1), mark)
             ids = np.concatenate([ids, ukeys // 16])
             info = self.labels.get(value) or LabelInfo(value, f"label {value}")
-            out.append(Mesh(self.vertices[ids], faces, name=info.name, value=value,
+            out.append(Mesh(self.vertices[ids], faces, name=info.name,
+                            value=self.shell_values.get(value, value),
                             color=tuple(info.color), space=self.space,
                             meta={"vertex_ids": ids, "copies": int(ukeys.size)}))
         return out

@@ -19,18 +19,10 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from .errors import AnatomeshError
+from .labels import LabelInfo
 
 SPACES = ("RAS", "LPS")
 _AXIS_LETTERS = {"RAS": ("L", "R", "P", "A", "I", "S"), "LPS": ("R", "L", "A", "P", "I", "S")}
-
-
-@dataclass
-class LabelInfo:
-    """One entry of a label table: integer value, display name, colour (r, g, b) in [0, 1]."""
-
-    value: int
-    name: str
-    color: Tuple[float, float, float] = (0.8, 0.8, 0.8)
 
 
 @dataclass

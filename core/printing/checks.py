@@ -27,12 +27,13 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import _kernels as _pk
-from ..geometry.graph import union_find_roots
+from ..geometry.kernels import union_find_roots
 from ..model.errors import AnatomeshError
-from ..model.mesh import (Mesh, component_measures, degenerate_faces, edge_face_counts, face_areas,
-                   topology)
+from ..geometry.topology import closed_and_oriented, component_measures, topology
+from ..model.mesh import (Mesh, check_arrays, degenerate_faces, face_areas, vertex_areas,
+                          vertex_normals, weld_ids)
 from ..model.progress import Progress, report, sub
+from ..geometry.intersections import crossing_pairs
 from ..geometry.spatial import FEATURE_EDGE, TriangleGrid
 
 #: printer profiles: minimum printable wall and minimum gap that stays open, mm
@@ -83,60 +84,6 @@ def resolve_profile(profile="fdm", min_wall: Optional[float] = None, min_gap: Op
 # ---------------------------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------------------------
-def _check_mesh(vertices, faces) -> Tuple[np.ndarray, np.ndarray]:
-    v = np.asarray(vertices, dtype=np.float64)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise AnatomeshError(f"vertices must be an (N, 3) array in mm, got shape {v.shape}")
-    f = np.asarray(faces)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise AnatomeshError(f"faces must be an (M, 3) integer array, got shape {f.shape}")
-    if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise AnatomeshError(f"faces refer to vertex {int(f.max())} but the mesh has {len(v)} "
-                             f"vertices: pass the matching vertex array")
-    if not np.all(np.isfinite(v)):
-        raise AnatomeshError("vertices contain NaN or infinite coordinates: the mesh is corrupt")
-    return np.ascontiguousarray(v), np.ascontiguousarray(f, dtype=np.int32)
-
-
-def weld_ids(vertices: np.ndarray) -> np.ndarray:
-    """An id (N,) int64 per vertex, equal for vertices at exactly the same position."""
-    v = np.asarray(vertices)
-    if len(v) == 0:
-        return np.zeros(0, np.int64)
-    order = np.lexsort((v[:, 2], v[:, 1], v[:, 0]))
-    vs = v[order]
-    new = np.r_[True, np.any(vs[1:] != vs[:-1], axis=1)]
-    ids = np.empty(len(v), np.int64)
-    ids[order] = np.cumsum(new) - 1
-    return ids
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (N, 3) float64 (zero for unused vertices)."""
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64)
-    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length = 2 * area
-    n = np.zeros((len(v), 3))
-    for k in range(3):
-        for a in range(3):
-            n[:, a] += np.bincount(f[:, k], weights=fn[:, a], minlength=len(v))
-    ln = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, ln, out=np.zeros_like(n), where=ln > 0)
-
-
-def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """A third of the area of each vertex's faces, (N,) mm² (sums to the surface area)."""
-    f = np.asarray(faces, np.int64)
-    a = face_areas(vertices, f) / 3.0
-    return np.bincount(f.ravel(), weights=np.repeat(a, 3), minlength=len(vertices))
-
-
-def closed_and_oriented(faces: np.ndarray, n_vertices: int) -> bool:
-    """Every edge has two faces using it once in each direction (closed and consistently
-    oriented; pinch vertices allowed) — the cheap part of :func:`anatomesh.core.model.mesh.topology`
-    that the ray directions need."""
-    _, count, balance = edge_face_counts(faces, n_vertices)
-    return bool(count.size and np.all(count == 2) and np.all(balance == 0))
 
 
 def _location(points: np.ndarray, weights: Optional[np.ndarray] = None) -> List[float]:
@@ -153,7 +100,7 @@ def sliver_faces(vertices: np.ndarray, faces: np.ndarray, min_angle_deg: float =
     """Faces whose smallest angle is below ``min_angle_deg``: (indices (K,) int64, angles (K,) deg).
 
     Degenerate faces (zero area) have angle 0 and are included."""
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     if f.shape[0] == 0:
         return np.zeros(0, np.int64), np.zeros(0)
     p = v[f]
@@ -173,7 +120,7 @@ def tiny_shells(vertices: np.ndarray, faces: np.ndarray, min_volume_mm3: float) 
 
     Returns ``[{"faces": index array, "volume_mm3", "area_mm2", "location"}]``, smallest first;
     uses :func:`anatomesh.core.model.mesh.component_measures`."""
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     out = []
     if f.shape[0] == 0:
         return out
@@ -187,48 +134,12 @@ def tiny_shells(vertices: np.ndarray, faces: np.ndarray, min_volume_mm3: float) 
     return out
 
 
-def _intersections_all(parts: Sequence[Tuple[np.ndarray, np.ndarray]], rel_eps: float = 1e-9,
-                       active: Optional[np.ndarray] = None):
-    """Intersecting face pairs of all parts together (only pairs with an ``active`` face, (M,)
-    bool over all parts' faces in order, when given).
-
-    Returns (vertices, faces, part_of_face, face_offset, pairs (K, 2) global face indices)."""
-    offs_v = np.cumsum([0] + [len(v) for v, _ in parts])
-    offs_f = np.cumsum([0] + [len(f) for _, f in parts])
-    if offs_f[-1] == 0:
-        return None, None, np.zeros(0, np.int64), offs_f, np.zeros((0, 2), np.int64)
-    v = np.concatenate([p[0] for p in parts]).astype(np.float64)
-    f = np.concatenate([p[1].astype(np.int64) + o for p, o in zip(parts, offs_v[:-1])])
-    part = np.repeat(np.arange(len(parts)), np.diff(offs_f))
-    wid = weld_ids(v)
-    wf = np.ascontiguousarray(wid[f])
-    f32 = np.ascontiguousarray(f, np.int32)
-    g = TriangleGrid(v, f32)
-    act = np.zeros(0, np.bool_) if active is None else np.ascontiguousarray(active, np.bool_)
-    if act.size and act.shape != (len(f),):
-        raise AnatomeshError(f"active must hold one flag per face ({len(f)}), got {act.shape}")
-    pairs = _pk.intersecting_pairs(g.vertices, g.faces, wf, g.origin, g.cell_size, g.dims, g.start,
-                                   g.items, rel_eps, act)
-    return v, f, part, offs_f, pairs
-
-
-def self_intersections(vertices: np.ndarray, faces: np.ndarray,
-                       active: Optional[np.ndarray] = None) -> np.ndarray:
-    """Pairs of faces (K, 2) int64 that cross each other, among faces sharing no vertex
-    (vertices at identical positions count as shared). Möller 1997 over a uniform grid.
-
-    ``active`` (M,) bool, optional: test only pairs with at least one active face (after moving
-    a few vertices, the faces touching them: no other pair can have changed)."""
-    v, f = _check_mesh(vertices, faces)
-    return _intersections_all([(v, f)], active=active)[4]
-
-
 def part_intersections(meshes: Sequence[Mesh]) -> List[Dict]:
     """Pairs of parts whose faces cross (shared seams excepted).
 
     Returns ``[{"a", "b" (names), "faces_a", "faces_b" (index arrays), "location"}]``."""
-    parts = [_check_mesh(m.vertices, m.faces) for m in meshes]
-    return _split_intersections(meshes, *_intersections_all(parts))[1]
+    parts = [check_arrays(m.vertices, m.faces) for m in meshes]
+    return _split_intersections(meshes, *crossing_pairs(parts))[1]
 
 
 def _split_intersections(meshes, v, f, part, offs_f, pairs):
@@ -304,7 +215,7 @@ def _oriented_rays(grid, v, f, idx, origins, n, t_min, max_thickness):
     """Inward rays for a closed, consistently oriented surface: per connected component, parity
     rays from its three largest faces vote whether its normals point outward; then one
     first-hit ray per face. Returns like :func:`_inward_rays`."""
-    from ..model.mesh import face_components
+    from ..geometry.topology import face_components
 
     ncomp, lab = face_components(f, len(v))
     lab = lab[idx]
@@ -352,7 +263,7 @@ def face_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
     ``{"ray", "ball" (M,) mm, "decided" (M,) bool}`` (decided False: parity could not tell the
     inside, e.g. on an open surface).
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     m = f.shape[0]
     out = np.full(m, np.nan)
     details = {"ray": np.full(m, np.nan), "ball": np.full(m, np.nan), "decided": np.zeros(m, bool),
@@ -382,9 +293,7 @@ def face_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
         if not max_thickness > 0:
             raise AnatomeshError(f"max_thickness must be a positive number of mm, got {max_thickness}")
         r0 = np.minimum(r0, 0.5 * float(max_thickness))
-    r, empty = _pk.shrinking_ball(np.ascontiguousarray(cen[idx]), np.ascontiguousarray(dirs), r0,
-                                  g.vertices, g.faces, g.origin, g.cell_size, g.dims, g.start,
-                                  g.items, _SEPARATION_COS, 40, 1e-6)
+    r, empty = g.shrinking_balls(cen[idx], dirs, r0, min_sep_cos=_SEPARATION_COS)
     ball = 2.0 * r
     sensible = ~(ball < _BALL_RAY_RATIO * ray)
     out[idx] = np.where(sensible, np.fmin(ray, ball), ray)
@@ -415,7 +324,7 @@ def wall_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
       thickness instead of reporting every edge as thin.
 
     Same options as :func:`face_thickness`; ``return_details`` adds ``"face"`` (M,) mm."""
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     ft, det = face_thickness(v, f, grid, max_thickness, oriented, return_details=True)
     out = np.full(len(v), np.inf)
     vals = np.where(np.isnan(ft), np.inf, ft)
@@ -429,9 +338,8 @@ def wall_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
                            cell_size=_point_cell(v, f))
         edge = float(np.mean(np.linalg.norm(v[f[:, 1]] - v[f[:, 0]], axis=1)))
         cover = np.zeros(len(v))
-        _pk.cover_max(np.ascontiguousarray(det["centre"][ins]), 0.5 * det["ball"][ins],
-                      _COVER_PAD * edge, pts.vertices, pts.origin, pts.cell_size, pts.dims,
-                      pts.start, used[pts.items].astype(np.int32), cover)
+        pts.ball_cover(det["centre"][ins], 0.5 * det["ball"][ins], _COVER_PAD * edge,
+                       used[pts.items].astype(np.int32), cover)
         out = np.where(np.isnan(out), out, np.fmax(out, np.where(cover > 0, cover, np.nan)))
     if return_details:
         det["face"] = ft
@@ -457,7 +365,7 @@ def thin_regions(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndarray,
     Returns ``[{"vertices": index array, "location": centroid mm, "area_mm2", "min_mm",
     "median_mm" (area-weighted), "min_location"}]``, largest area first. Thin branches (vessels,
     ribs) show up as regions whose ``min_mm`` is the smallest diameter along them."""
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     t = np.asarray(thickness, np.float64)
     if t.shape != (len(v),):
         raise AnatomeshError(f"thickness must have one value per vertex ({len(v)}), got {t.shape}")
@@ -588,7 +496,7 @@ def part_gaps(meshes: Sequence[Mesh], max_distance: float = GAP_REPORT_MM, min_g
     ``min_gap`` (touching parts print joined by their seam whatever their clearance; to print
     them apart, :func:`anatomesh.core.printing.fixes.separate_parts` opens the seams).
     """
-    parts = [_check_mesh(m.vertices, m.faces) for m in meshes]
+    parts = [check_arrays(m.vertices, m.faces) for m in meshes]
     names = [m.name or str(i) for i, m in enumerate(meshes)]
     k = len(parts)
     if grids is None:
@@ -695,10 +603,10 @@ def check_parts(meshes: Sequence[Mesh], profile="fdm", min_wall: Optional[float]
     for i, m in enumerate(meshes):
         if not isinstance(m, Mesh):
             raise AnatomeshError(f"check_parts takes Mesh objects; item {i} is {type(m).__name__}")
-    parts = [_check_mesh(m.vertices, m.faces) for m in meshes]
+    parts = [check_arrays(m.vertices, m.faces) for m in meshes]
     names = [m.name or str(i) for i, m in enumerate(meshes)]
     report(progress, 0.0, "intersections")
-    self_pairs, cross = _split_intersections(meshes, *_intersections_all(parts))
+    self_pairs, cross = _split_intersections(meshes, *crossing_pairs(parts))
     report(progress, 0.15, "parts")
     grids = []
     out_parts = []
@@ -809,172 +717,10 @@ def _check_one(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
 # ---------------------------------------------------------------------------------------------
 # fixes
 # ---------------------------------------------------------------------------------------------
-def remove_tiny_shells(mesh: Mesh, min_volume_mm3: float) -> Mesh:
-    """A copy of ``mesh`` without the components enclosing less than ``min_volume_mm3``
-    (see :func:`tiny_shells`); unused vertices are dropped. ``meta["removed_shells"]`` lists the
-    removed volumes (mm³)."""
-    from ..model.mesh import compact
-
-    v, f = _check_mesh(mesh.vertices, mesh.faces)
-    shells = tiny_shells(v, f, min_volume_mm3)
-    keep = np.ones(f.shape[0], bool)
-    for s in shells:
-        keep[s["faces"]] = False
-    nv, nf, nn, used = compact(mesh.vertices, f[keep], mesh.normals)
-    meta = dict(mesh.meta)
-    meta["removed_shells"] = [round(s["volume_mm3"], 6) for s in shells]
-    return Mesh(nv, nf, nn, name=mesh.name, value=mesh.value, color=mesh.color, space=mesh.space,
-                meta=meta)
 
 
 # ---------------------------------------------------------------------------------------------
 # files → meshes → report
 # ---------------------------------------------------------------------------------------------
-def _report_meshes(folder, progress: Optional[Progress] = None) -> List[Mesh]:
-    """The surfaces listed in ``folder/report.json`` (written by ``anatomesh mesh``), named as
-    there; per surface the first of STL, PLY, OBJ, 3MF that was written."""
-    import json
-    from pathlib import Path
-
-    from ..io.mesh_files import read_mesh
-
-    folder = Path(folder)
-    rp = folder / "report.json"
-    try:
-        rep = json.loads(rp.read_text())
-        surfaces = rep["surfaces"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise AnatomeshError(f"cannot read the mesh report ({exc}); re-run `anatomesh mesh` or "
-                             f"give the mesh files themselves", rp) from None
-    out = []
-    for k, s in enumerate(surfaces):
-        files = s.get("files") or {}
-        fmt = next((x for x in ("stl", "ply", "obj", "3mf") if x in files), None)
-        if fmt is None:
-            raise AnatomeshError(f"surface {s.get('name')!r} lists no STL/PLY/OBJ/3MF file; re-run "
-                                 f"`anatomesh mesh` with --format stl", rp)
-        path = Path(files[fmt])
-        path = path if path.is_absolute() else folder / path
-        report(progress, k / max(len(surfaces), 1), f"reading {path.name}")
-        m = read_mesh(path) if fmt != "3mf" else _one_mesh(_read_3mf(path), path.stem)
-        m.name = str(s.get("name") or m.name)
-        m.value = s.get("value")
-        if s.get("color"):
-            m.color = tuple(s["color"][:3])
-        m.space = str(rep.get("space", m.space))
-        out.append(m)
-    return out
 
 
-def _read_3mf(path) -> List[Mesh]:
-    try:
-        from ..export.threemf import read_3mf
-    except ImportError:
-        raise AnatomeshError("3MF reading is not available in this version; export STL and check "
-                             "that", path) from None
-    return list(read_3mf(path))
-
-
-def _one_mesh(meshes: List[Mesh], name: str) -> Mesh:
-    """The objects of one surface's file as one Mesh (they are usually just one)."""
-    if len(meshes) == 1:
-        return meshes[0]
-    offs = np.cumsum([0] + [m.n_vertices for m in meshes])
-    return Mesh(np.concatenate([m.vertices for m in meshes]),
-                np.concatenate([m.faces + o for m, o in zip(meshes, offs[:-1])]), name=name,
-                color=meshes[0].color if meshes else (0.8, 0.8, 0.8),
-                space=meshes[0].space if meshes else "RAS")
-
-
-def read_parts(paths, progress: Optional[Progress] = None) -> List[Mesh]:
-    """Meshes to check from files and folders: STL/PLY/OBJ files (one part each), 3MF files
-    (one part per object, via :func:`anatomesh.core.export.threemf.read_3mf`), folders written by
-    ``anatomesh mesh`` (their ``report.json`` names the files), or other folders (every mesh file
-    in them, sorted). Raises :class:`AnatomeshError` for a missing path or an unreadable file."""
-    from pathlib import Path
-
-    from ..io.mesh_files import MESH_SUFFIXES, read_mesh
-
-    if isinstance(paths, (str, Path)):
-        paths = [paths]
-    meshes: List[Mesh] = []
-    paths = [Path(p) for p in paths]
-    if not paths:
-        raise AnatomeshError("no mesh files given: pass STL/PLY/OBJ/3MF files or a folder")
-    for k, p in enumerate(paths):
-        sp = sub(progress, k / len(paths), (k + 1) / len(paths))
-        if p.is_dir():
-            if (p / "report.json").is_file():
-                meshes += _report_meshes(p, sp)
-                continue
-            files = sorted(x for x in p.iterdir()
-                           if x.suffix.lower() in MESH_SUFFIXES + (".3mf",) and x.is_file())
-            if not files:
-                raise AnatomeshError("this folder has no report.json and no STL/PLY/OBJ/3MF files; "
-                                     "give mesh files or a folder written by `anatomesh mesh`", p)
-            meshes += read_parts(files, sp)
-        elif not p.exists():
-            raise AnatomeshError("no such file or folder: check the path", p)
-        elif p.suffix.lower() == ".3mf":
-            meshes += _read_3mf(p)
-        else:
-            report(sp, 0.0, f"reading {p.name}")
-            meshes.append(read_mesh(p))
-    names = [m.name for m in meshes]
-    for i, m in enumerate(meshes):  # keep names unique: they key the report
-        if not m.name or names.count(m.name) > 1:
-            m.name = f"{m.name or 'part'}#{i + 1}"
-    return meshes
-
-
-def check_files(paths, profile="fdm", min_wall: Optional[float] = None,
-                min_gap: Optional[float] = None, progress: Optional[Progress] = None) -> Dict:
-    """:func:`check_parts` on the meshes of ``paths`` (see :func:`read_parts`); the report also
-    lists the ``files`` read."""
-    meshes = read_parts(paths, sub(progress, 0.0, 0.1))
-    rep = check_parts(meshes, profile, min_wall, min_gap, progress=sub(progress, 0.1, 1.0))
-    rep["files"] = [str(p) for p in ([paths] if isinstance(paths, str) else paths)]
-    return rep
-
-
-def summary_lines(rep: Dict) -> List[str]:
-    """A short human summary of a :func:`check_parts` report, one problem per line."""
-    prof = rep["profile"]
-    lines = [f"profile {prof['name']}: min wall {prof['min_wall']} mm, min gap {prof['min_gap']} mm"]
-    for p in rep["parts"]:
-        problems = []
-        if not p["closed"]:
-            problems.append("not closed")
-        if not p["manifold"]:
-            problems.append("not manifold")
-        if not p.get("oriented", True):
-            problems.append("inconsistent normals")
-        if p["self_intersections"]:
-            problems.append(f"{p['self_intersections']} self-intersecting faces")
-        if p.get("degenerate_faces"):
-            problems.append(f"{p['degenerate_faces']} degenerate faces")
-        if p.get("tiny_shells"):
-            problems.append(f"{len(p['tiny_shells'])} tiny shells")
-        if p.get("thin_regions"):
-            r = p["thin_regions"][0]
-            problems.append(f"thin: {p['thin_area_mm2']:.1f} mm² below {prof['min_wall']} mm "
-                            f"(thinnest {r['min_mm']} mm at {r['min_location']})")
-        if p.get("part_intersections"):
-            problems.append(f"crosses {p['part_intersections']} other part(s)")
-        wall = "?" if p["min_wall_mm"] is None else f"{p['min_wall_mm']:.2f}"
-        state = "ok  " if p["passed"] else "FAIL"
-        lines.append(f"{state} {p['name']} (min wall {wall} mm)" +
-                     (": " + "; ".join(problems) if problems else ""))
-    for g in rep["gaps"]:
-        if g.get("intersecting"):
-            lines.append(f"FAIL {g['a']} and {g['b']} intersect at {g['location']}")
-        elif g["fuses"]:
-            lines.append(f"FAIL {g['a']} – {g['b']}: {g['clearance_mm']} mm apart at "
-                         f"{g.get('clearance_location', g['location'])} (< {prof['min_gap']} mm: fuses)")
-    n_touch = sum(bool(g["touching"]) for g in rep["gaps"])
-    n_close = len(rep["gaps"]) - n_touch
-    n_ok = sum(p["passed"] for p in rep["parts"])
-    lines.append(f"{'PASSED' if rep['passed'] else 'FAILED'}: {n_ok}/{len(rep['parts'])} parts pass; "
-                 f"{n_touch} touching pairs (shared seams), {n_close} other pairs closer than "
-                 f"{GAP_REPORT_MM:g} mm")
-    return lines

@@ -22,8 +22,8 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.mesh import Mesh, compact
-from .checks import _check_mesh, remove_tiny_shells, vertex_normals
+from ..model.mesh import Mesh, check_arrays, compact, vertex_normals
+from .checks import tiny_shells
 
 
 # ---------------------------------------------------------------------------------------------
@@ -84,7 +84,7 @@ def close_holes(mesh: Mesh, max_edges: int = 30) -> Tuple[Mesh, Dict]:
     "locations": [centroids mm]}``)."""
     if int(max_edges) < 3:
         raise AnatomeshError(f"holes have at least 3 edges; got --close-holes {max_edges}")
-    v, f = _check_mesh(mesh.vertices, mesh.faces)
+    v, f = check_arrays(mesh.vertices, mesh.faces)
     loops, bad = boundary_loops(f, len(v))
     new_v, new_f, locs = [], [], []
     left = 1 if bad else 0
@@ -154,7 +154,8 @@ def separate_meshes(meshes: Sequence[Mesh], clearance: float, chosen: Optional[I
     ``chosen`` (indices) limits the separation to interfaces between those parts.
 
     Returns (meshes, ``{"clearance_mm", "moved_vertices", "pairs": [[i, j], ...]}``)."""
-    from .checks import _row_keys, weld_ids
+    from .checks import _row_keys
+    from ..model.mesh import weld_ids
 
     if not np.isfinite(clearance) or clearance <= 0:
         raise AnatomeshError(f"the clearance must be a positive number of mm, got {clearance}")
@@ -328,3 +329,19 @@ def thicken_labels(volume, min_wall: float, labels: Optional[Iterable[int]] = No
         added[int(val)] = int(grow.sum())
     vol = replace(volume, data=out, warnings=list(volume.warnings))
     return vol, {"labels": added, "min_wall_mm": float(min_wall)}
+
+
+def remove_tiny_shells(mesh: Mesh, min_volume_mm3: float) -> Mesh:
+    """A copy of ``mesh`` without the components enclosing less than ``min_volume_mm3``
+    (see :func:`tiny_shells`); unused vertices are dropped. ``meta["removed_shells"]`` lists the
+    removed volumes (mm³)."""
+    v, f = check_arrays(mesh.vertices, mesh.faces)
+    shells = tiny_shells(v, f, min_volume_mm3)
+    keep = np.ones(f.shape[0], bool)
+    for s in shells:
+        keep[s["faces"]] = False
+    nv, nf, nn, used = compact(mesh.vertices, f[keep], mesh.normals)
+    meta = dict(mesh.meta)
+    meta["removed_shells"] = [round(s["volume_mm3"], 6) for s in shells]
+    return Mesh(nv, nf, nn, name=mesh.name, value=mesh.value, color=mesh.color, space=mesh.space,
+                meta=meta)

@@ -4,7 +4,7 @@ Smoothing moves every vertex a little; where two sheets are a voxel apart (two o
 one background voxel, or the two sides of a one-voxel-thick part), their moves can make faces cross,
 although the unsmoothed surface-nets / marching-cubes surface has no crossing. A printer reads such a
 model as broken and a renderer shows z-fighting. :func:`untangle` finds the crossing faces (Möller
-1997 triangle–triangle tests over a grid, :func:`anatomesh.core.printing.checks.self_intersections`) and
+1997 triangle–triangle tests over a grid, :func:`anatomesh.core.geometry.intersections.self_intersections`) and
 pulls their vertices — with their 1-ring, so the fix blends in — back toward the unsmoothed positions,
 halving the smoothing displacement each round, until nothing crosses. On a conforming multi-label
 set all labels share one vertex array, so one call fixes crossings inside a shell and between shells
@@ -31,7 +31,7 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
     ``info = {"crossing_pairs": found at the start, "moved_vertices": how many were pulled back,
     "rounds": rounds used, "crossings_left": pairs left (0 unless ``rest`` itself crosses)}``.
     """
-    from ..printing.checks import self_intersections
+    from ..geometry.intersections import self_intersections
 
     v = np.array(vertices, copy=True)
     r = np.asarray(rest, dtype=v.dtype)

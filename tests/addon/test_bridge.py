@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from anatomesh.core.export.common import srgb_to_linear
+from anatomesh.core.model.labels import srgb_to_linear
 
 
 def torus(n=24, m=16, R=40.0, r=10.0):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import shared
 
-from anatomesh.core.model.mesh import topology
+from anatomesh.core.geometry.topology import topology
 
 
 @pytest.fixture

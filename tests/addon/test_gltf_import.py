@@ -7,7 +7,7 @@ import pytest
 from conftest import SAMPLE  # tests/conftest.py
 
 from anatomesh.core import label_surfaces, load
-from anatomesh.core.export.common import srgb_to_linear
+from anatomesh.core.model.labels import srgb_to_linear
 from anatomesh.core.export.gltf import write_glb
 
 ORGANS = ("liver", "kidney_left", "gallbladder", "aorta")

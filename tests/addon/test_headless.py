@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import shared  # tests/conftest.py
 
-from anatomesh.core.export.common import srgb_to_linear
+from anatomesh.core.model.labels import srgb_to_linear
 
 LABELS = ["liver", "gallbladder", "spleen", "lung_lower_lobe_left"]
 
@@ -66,7 +66,7 @@ def test_blend_holds_the_scene_the_ui_builds(made, addon):
 
 def test_blend_vertices_are_the_written_surfaces(made, addon):
     """Reopened objects have exactly the vertices of the STL files (mm, same space)."""
-    from anatomesh.core.export.mesh_files import read_stl
+    from anatomesh.core.io.mesh_files import read_stl
 
     result, out = made
     bridge = importlib.import_module(addon.__name__ + ".addon.bridge")

@@ -18,7 +18,7 @@ import pytest
 from conftest import shared  # tests/conftest.py (pytest puts tests/ on sys.path)
 
 from anatomesh.core import load  # the checkout's core, for expected values
-from anatomesh.core.export.common import linear_to_srgb, srgb_to_linear
+from anatomesh.core.model.labels import linear_to_srgb, srgb_to_linear
 
 TABLE_KEY = "total"
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from anatomesh.app.cli.main import main
-from anatomesh.core.export.mesh_files import read_stl
+from anatomesh.core.io.mesh_files import read_stl
 from conftest import SAMPLE, shared
 
 SEG = SAMPLE / "example_seg.nii.gz"

@@ -9,7 +9,8 @@ from helpers.meshes import box
 from anatomesh.app.cli import main as cli
 from anatomesh.core.export.mesh_files import write_obj, write_ply, write_stl
 from anatomesh.core.io.mesh_files import read_mesh, split_nonmanifold
-from anatomesh.core.model.mesh import Mesh, topology
+from anatomesh.core.model.mesh import Mesh
+from anatomesh.core.geometry.topology import topology
 
 REQUIRED_PART_KEYS = {"name", "closed", "manifold", "self_intersections", "min_wall_mm",
                       "thin_area_mm2", "passed"}

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from anatomesh.core.model import mesh as meshlib
+from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.export.mesh_files import read_stl
+from anatomesh.core.io.mesh_files import read_stl
 from anatomesh.core.export.threemf import read_3mf
 from anatomesh.core.export.gltf import read_glb
 from anatomesh.app.run import Recipe, run
@@ -99,7 +99,7 @@ def test_scene_files_3mf_combined_and_glb(decimated):
     for s in rep["surfaces"]:  # one 3MF per part too
         (single,) = read_3mf(out / s["files"]["3mf"])
         assert single.name == s["name"] and single.n_faces == s["faces"]
-        assert meshlib.topology(single.vertices, single.faces).closed
+        assert topology(single.vertices, single.faces).closed
 
 
 def test_recipe_beside_the_report_reruns_the_same(decimated, tmp_path):
@@ -184,7 +184,7 @@ def test_levels_of_detail_written_as_glb_files(tmp_path):
     """--lod 3: three GLBs from one progressive run, lod0 = the written surfaces, each level about
     half the faces of the one before, every shell closed, the error in mm reported per level."""
     from anatomesh.core.export.gltf import read_glb
-    from anatomesh.core.model.mesh import topology
+    from anatomesh.core.geometry.topology import topology
 
     res = run(Recipe(input=SEG, out_dir=str(tmp_path), labels=["liver", "gallbladder", "spleen"],
                      formats=["stl"], lod=3))

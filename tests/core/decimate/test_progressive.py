@@ -6,7 +6,8 @@ import pytest
 from anatomesh.core.decimate import progressive as lod
 from anatomesh.core.decimate.qem import decimate
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.model.mesh import Mesh, topology
+from anatomesh.core.model.mesh import Mesh
+from anatomesh.core.geometry.topology import topology
 from conftest import shared
 from helpers.meshes import icosphere, torus
 

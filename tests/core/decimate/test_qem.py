@@ -5,7 +5,8 @@ import pytest
 
 from anatomesh.core.decimate.qem import decimate, decimate_mesh, decimate_surfaces
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.model.mesh import Mesh, topology
+from anatomesh.core.model.mesh import Mesh
+from anatomesh.core.geometry.topology import topology
 from conftest import shared
 from helpers.meshes import icosphere, torus
 

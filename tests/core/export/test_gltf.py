@@ -8,11 +8,11 @@ import pytest
 from conftest import SAMPLE
 
 from anatomesh.core import AnatomeshError, Mesh, label_surfaces, load
-from anatomesh.core.export.common import srgb_to_linear
-from anatomesh.core.export.mesh_files import SCENE_FORMATS
+from anatomesh.core.model.labels import srgb_to_linear
+from anatomesh.core.export import SCENE_FORMATS
 from anatomesh.core.export.gltf import AXES, ROTATION, UNITS, read_glb, write_glb
 from anatomesh.core.model.mesh import signed_volume
-from anatomesh.core.printing.checks import vertex_normals
+from anatomesh.core.model.mesh import vertex_normals
 from helpers.meshes import icosphere
 
 ORGANS = ("kidney_left", "gallbladder", "pancreas")

@@ -1,7 +1,8 @@
 """Exporters write what they say: space and units in headers, exact geometry round trip."""
 import numpy as np
 
-from anatomesh.core.export.mesh_files import read_stl, write_mesh
+from anatomesh.core.export.mesh_files import write_mesh
+from anatomesh.core.io.mesh_files import read_stl
 from anatomesh.core.model.mesh import Mesh
 from helpers.meshes import icosphere
 

@@ -9,7 +9,7 @@ import pytest
 from conftest import SAMPLE
 
 from anatomesh.core import AnatomeshError, Mesh, label_surfaces, load, topology
-from anatomesh.core.export.mesh_files import SCENE_FORMATS
+from anatomesh.core.export import SCENE_FORMATS
 from anatomesh.core.export.threemf import NS_ANATOMESH, NS_CORE, read_3mf, write_3mf
 from anatomesh.core.model.mesh import signed_volume
 from helpers.meshes import icosphere

@@ -8,8 +8,8 @@ from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.extract import mc_table
 from anatomesh.core.extract.isosurface import T_MIN, isosurface, isosurfaces
 from anatomesh.core.io.load import load
-from anatomesh.core.model.mesh import (degenerate_faces, duplicate_vertices, edge_face_counts, signed_volume,
-                                 surface_area, topology)
+from anatomesh.core.model.mesh import degenerate_faces, duplicate_vertices, signed_volume, surface_area
+from anatomesh.core.geometry.topology import edge_face_counts, topology
 from anatomesh.core.model.volume import Volume
 from conftest import shared
 

@@ -14,7 +14,8 @@ from anatomesh.core import AnatomeshError, LabelInfo, Volume, load
 import anatomesh.core.extract.multilabel as labels_module
 from anatomesh.core.extract.multilabel import label_surfaces
 from anatomesh.core.extract.shell_table import FACE_VOXELS, tables
-from anatomesh.core.model.mesh import signed_volume, topology
+from anatomesh.core.model.mesh import signed_volume
+from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.surfaceset import SurfaceSet
 
 from conftest import shared

@@ -3,7 +3,6 @@ names the file or folder and the problem (``pytest -s`` prints the corpus of mes
 from __future__ import annotations
 
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np

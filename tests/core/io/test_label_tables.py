@@ -10,10 +10,9 @@ import pytest
 from conftest import shared
 
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.io.label_tables import (
-    anatomical_color, distinct_color, distinct_values, find_sidecar, image_stem,
-    label_table_for, load_label_table, looks_like_label_map, read_label_table)
-from anatomesh.core.model.volume import LabelInfo
+from anatomesh.core.io.label_tables import distinct_values, find_sidecar, image_stem, load_label_table, looks_like_label_map, read_label_table
+from anatomesh.core.model.labels import anatomical_color, distinct_color, label_table_for
+from anatomesh.core.model.labels import LabelInfo
 
 TS = ("totalsegmentator", "label_names_total_and_total_mr.json")
 

@@ -6,8 +6,11 @@ from conftest import shared
 from helpers.meshes import box, icosphere, torus
 
 from anatomesh.core.printing import checks as pc
+from anatomesh.core.printing.fixes import remove_tiny_shells
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.model.mesh import Mesh, topology
+from anatomesh.core.model.mesh import Mesh
+from anatomesh.core.geometry.topology import topology
+from anatomesh.core.geometry.intersections import self_intersections
 from anatomesh.core.geometry.spatial import TriangleGrid
 
 
@@ -91,7 +94,7 @@ def test_self_intersections_overlapping_boxes_vs_clean_shapes():
     a, b = box((0, 0, 0), (2, 2, 2), 3), box((1, 1, 1), (3, 3, 3), 3)
     v = np.vstack([a[0], b[0]])
     f = np.vstack([a[1], b[1] + len(a[0])])
-    pairs = pc.self_intersections(v, f)
+    pairs = self_intersections(v, f)
     assert len(pairs) > 0
     hit = np.unique(pairs.ravel())
     assert np.any(hit < len(a[1])) and np.any(hit >= len(a[1]))  # both boxes involved
@@ -99,13 +102,13 @@ def test_self_intersections_overlapping_boxes_vs_clean_shapes():
     c = v[f[hit]].mean(1)
     assert np.all((c.max(1) >= 1 - 1e-9) & (c.min(1) <= 2 + 1e-9))
     sv, sf = icosphere(3, 5.0)
-    assert pc.self_intersections(sv, sf).shape == (0, 2)
+    assert self_intersections(sv, sf).shape == (0, 2)
     tv, tf = torus()
-    assert pc.self_intersections(tv, tf).shape == (0, 2)
+    assert self_intersections(tv, tf).shape == (0, 2)
     # a folded sheet: a sphere with one vertex pushed through the opposite side
     sv2 = sv.copy()
     sv2[0] = -1.5 * sv2[0]
-    assert len(pc.self_intersections(sv2, sf)) > 0
+    assert len(self_intersections(sv2, sf)) > 0
 
 
 def test_part_intersections_spheres_and_seams():
@@ -312,7 +315,7 @@ def test_remove_tiny_shells():
     v, f = box((0, 0, 0), (10, 10, 10), 2)
     small = box((20, 0, 0), (20.5, 0.5, 0.5), 1)
     m = Mesh(np.vstack([v, small[0]]), np.vstack([f, small[1] + len(v)]), name="x")
-    out = pc.remove_tiny_shells(m, 1.0)
+    out = remove_tiny_shells(m, 1.0)
     assert out.n_faces == len(f) and out.n_vertices == len(v) and out.name == "x"
     assert out.meta["removed_shells"] == [pytest.approx(0.125)]
     assert topology(out.vertices, out.faces).components == 1

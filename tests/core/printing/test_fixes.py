@@ -8,7 +8,9 @@ from anatomesh.core.printing import checks as pc
 from anatomesh.core.printing import fixes as fx
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.extract.multilabel import label_surfaces
-from anatomesh.core.model.mesh import Mesh, signed_volume, topology
+from anatomesh.core.model.mesh import Mesh, signed_volume, weld_ids
+from anatomesh.core.geometry.intersections import self_intersections
+from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.volume import Volume
 
 
@@ -71,11 +73,11 @@ def test_separate_parts_opens_every_seam_by_the_clearance(clearance):
     assert info["pairs"] == [[1, 2], [1, 3], [2, 3]] and info["moved_vertices"] > 0
     allv = np.concatenate([p.vertices for p in parts])
     owner = np.repeat(np.arange(len(parts)), [p.n_vertices for p in parts])
-    wid = pc.weld_ids(allv)
+    wid = weld_ids(allv)
     assert all(np.unique(owner[wid == w]).size == 1 for w in np.unique(wid))  # no shared vertex
     for p in parts:
         assert solid(p)
-        assert pc.self_intersections(p.vertices, p.faces).shape[0] == 0
+        assert self_intersections(p.vertices, p.faces).shape[0] == 0
     gaps = pc.part_gaps(parts, min_gap=clearance)
     assert len(gaps) == 3 and not any(g["touching"] for g in gaps)
     # the flat 1|2 interface opens by exactly the clearance; where 3 sits on 1 and 2 the other

@@ -4,7 +4,7 @@ import pytest
 
 from anatomesh.core import label_surfaces, load
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.core.printing.checks import self_intersections
+from anatomesh.core.geometry.intersections import self_intersections
 from anatomesh.core.smooth.driver import smooth_surfaces
 from anatomesh.core.smooth.untangle import untangle
 

@@ -1,10 +1,9 @@
-"""Numba kernels for :mod:`anatomesh.core.printing.checks`: triangle-triangle intersection over a
-uniform grid and the shrinking-ball wall thickness. Private: use the wrappers in printcheck.py.
+"""Numba kernels for :mod:`anatomesh.core.geometry.intersections`: the triangle-triangle test
+(Möller 1997) and the search for crossing face pairs over a uniform grid. Private: call the
+wrappers in ``intersections.py`` (they validate inputs).
 """
 import numpy as np
 from numba import njit, prange
-
-from ..geometry._spatial_kernels import closest_xyz
 
 
 # ---------------------------------------------------------------------------------------------
@@ -261,78 +260,3 @@ def intersecting_pairs(vertices, faces, wfaces, origin, h, dims, start, items, r
             _cell_pairs(busy[b], start, items, vertices, faces, wfaces, fmin, fmax, origin, h,
                         dims, rel_eps, active, out, offs[b])
     return out
-
-
-# ---------------------------------------------------------------------------------------------
-# shrinking ball (Ma, Bae & Kobbelt 2012)
-# ---------------------------------------------------------------------------------------------
-@njit(cache=True, parallel=True)
-def shrinking_ball(points, inward, r0, vertices, faces, origin, h, dims, start, items,
-                   min_sep_cos, max_iter, tol):
-    """Radius (P,) of the largest empty ball touching each surface point p with its centre on
-    p + r * inward (unit inward directions (P, 3)), starting from radius r0 (P,).
-
-    Each step finds the surface point q nearest to the centre; if it is inside the ball the radius
-    shrinks to the ball through p and q: r = |p − q|² / (2 n·(q − p)). A q seen from the centre
-    within the separation angle (cos > ``min_sep_cos``) of p is a neighbour of p on the same side
-    (local curvature or a corner), not the opposite wall, and stops the shrinking."""
-    n = points.shape[0]
-    radius = r0.copy()
-    empty = np.zeros(n, np.bool_)
-    skip = np.zeros(0, np.bool_)
-    for i in prange(n):
-        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-        nx, ny, nz = inward[i, 0], inward[i, 1], inward[i, 2]
-        r = r0[i]
-        if not np.isfinite(r) or r <= 0:
-            continue
-        for _ in range(max_iter):
-            cx, cy, cz = px + r * nx, py + r * ny, pz + r * nz
-            d, f, feat, qx, qy, qz = closest_xyz(cx, cy, cz, vertices, faces, origin, h, dims,
-                                                 start, items, r * (1.0 - tol), skip)
-            if f < 0 or d >= r * (1.0 - tol):
-                empty[i] = True  # the ball is empty: an inscribed (medial) ball
-                break
-            ux, uy, uz = qx - px, qy - py, qz - pz
-            proj = nx * ux + ny * uy + nz * uz
-            if proj <= 0.0:
-                break
-            # separation angle at the centre between p and q
-            ax, ay, az = px - cx, py - cy, pz - cz
-            bx, by, bz = qx - cx, qy - cy, qz - cz
-            den = np.sqrt((ax * ax + ay * ay + az * az) * (bx * bx + by * by + bz * bz))
-            if den > 0 and (ax * bx + ay * by + az * bz) / den > min_sep_cos:
-                break
-            r_new = (ux * ux + uy * uy + uz * uz) / (2.0 * proj)
-            if r_new >= r:
-                break
-            r = r_new
-            if r <= 1e-9:
-                break
-        radius[i] = r
-    return radius, empty
-
-
-@njit(cache=True)
-def cover_max(centres, radii, pad, points, origin, h, dims, start, items, out):
-    """For each ball (centres (B, 3), radii (B,)), raise ``out[v]`` to the ball's diameter for
-    every point v within radius + pad of its centre (Hildebrand & Rüegsegger 1997 local
-    thickness: the largest inscribed ball containing the point). ``items`` index ``points``."""
-    for b in range(centres.shape[0]):
-        r = radii[b]
-        reach = r + pad
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        for a in range(3):
-            lo[a] = max(int(np.floor((centres[b, a] - reach - origin[a]) / h)), 0)
-            hi[a] = min(int(np.floor((centres[b, a] + reach - origin[a]) / h)), dims[a] - 1)
-        for i in range(lo[0], hi[0] + 1):
-            for j in range(lo[1], hi[1] + 1):
-                for k in range(lo[2], hi[2] + 1):
-                    c = (i * dims[1] + j) * dims[2] + k
-                    for s in range(start[c], start[c + 1]):
-                        v = items[s]
-                        d2 = ((points[v, 0] - centres[b, 0]) ** 2 + (points[v, 1] - centres[b, 1]) ** 2
-                              + (points[v, 2] - centres[b, 2]) ** 2)
-                        if d2 <= reach * reach and 2.0 * r > out[v]:
-                            out[v] = 2.0 * r

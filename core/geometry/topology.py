@@ -1,0 +1,166 @@
+"""Topological invariants of triangle meshes: edges, components, closed, manifold, oriented, genus.
+
+For a closed 2-manifold with ``C`` components, Euler characteristic ``χ = V − E + F`` and genus
+``g = (2C − χ) / 2`` (a sphere has χ = 2, g = 0; a torus χ = 0, g = 1). Edge lists are sorted once
+with ``np.unique``-style keys; fan counts per vertex use a numba kernel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from ..model.mesh import degenerate_faces, face_areas, signed_volume
+from . import _neighbors_kernels
+from .kernels import union_find_roots
+
+
+def directed_edges(faces: np.ndarray) -> np.ndarray:
+    """All half-edges (3M, 2) int64 as (from, to), in face order: face f gives rows 3f..3f+2."""
+    f = np.asarray(faces, dtype=np.int64)
+    return np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
+
+
+def _edge_keys(a: np.ndarray, b: np.ndarray, n_vertices: int) -> np.ndarray:
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    return lo * np.int64(max(n_vertices, 1)) + hi
+
+
+def edge_face_counts(faces: np.ndarray, n_vertices: int):
+    """Undirected edges with how many faces use them and their net orientation.
+
+    Returns
+    -------
+    edges : (E, 2) int64, sorted vertex pairs (lo, hi)
+    count : (E,) int64, faces using each edge
+    balance : (E,) int64, (#half-edges lo→hi) − (#hi→lo); 0 for every edge of a consistently
+        oriented closed manifold.
+    """
+    he = directed_edges(faces)
+    if he.size == 0:
+        z = np.zeros(0, np.int64)
+        return np.zeros((0, 2), np.int64), z, z
+    keys = _edge_keys(he[:, 0], he[:, 1], n_vertices)
+    sign = np.where(he[:, 0] < he[:, 1], 1, -1)
+    order = np.argsort(keys, kind="stable")
+    ks = keys[order]
+    starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    count = np.diff(np.r_[starts, ks.size])
+    balance = np.add.reduceat(sign[order], starts)
+    uk = ks[starts]
+    n = np.int64(max(n_vertices, 1))
+    edges = np.stack([uk // n, uk % n], axis=1)
+    return edges, count, balance
+
+
+def face_components(faces: np.ndarray, n_vertices: int) -> Tuple[int, np.ndarray]:
+    """Connected components of faces through shared vertices.
+
+    Returns ``(n_components, labels)`` with ``labels`` (M,) int64 in [0, n_components).
+    Faces touching only at a vertex count as connected (printing-wise they are one part).
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    m = f.shape[0]
+    if m == 0:
+        return 0, np.zeros(0, np.int64)
+    parent = _connected_vertex_roots(np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]], n_vertices)
+    roots = parent[f[:, 0]]
+    uniq, lab = np.unique(roots, return_inverse=True)
+    return int(uniq.size), lab.astype(np.int64)
+
+
+def _connected_vertex_roots(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """Component representative (smallest member) of each of ``n`` nodes, edges (a[i], b[i])."""
+    return union_find_roots(np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64), int(n))
+
+
+@dataclass
+class Topology:
+    """Invariants of one triangle mesh (see :func:`topology`)."""
+
+    vertices: int
+    faces: int
+    edges: int
+    components: int
+    euler: int
+    genus: Optional[int]
+    closed: bool
+    manifold: bool
+    oriented: bool
+    boundary_edges: int
+    nonmanifold_edges: int
+    nonmanifold_vertices: int
+    degenerate_faces: int
+
+    def as_dict(self) -> Dict:
+        return dict(self.__dict__)
+
+
+def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> Topology:
+    """Check a mesh: closed, 2-manifold (edges and vertices), consistently oriented, genus.
+
+    * closed: every edge has exactly two faces;
+    * manifold: no edge has more than two faces and every vertex's faces form one fan;
+    * oriented: every edge used once in each direction (needs closed + manifold);
+    * genus: ``(2C − χ) / 2`` for closed manifolds, else None.
+    Only vertices used by faces count in V.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    nv_all = int(np.asarray(vertices).shape[0])
+    edges, count, balance = edge_face_counts(f, nv_all)
+    used = np.unique(f.ravel()) if f.size else np.zeros(0, np.int64)
+    V, E, F = int(used.size), int(edges.shape[0]), int(f.shape[0])
+    boundary = int(np.count_nonzero(count == 1))
+    nm_edges = int(np.count_nonzero(count > 2))
+    closed = boundary == 0 and nm_edges == 0 and F > 0
+    nm_verts = nonmanifold_vertices(f, nv_all).size
+    manifold = nm_edges == 0 and nm_verts == 0
+    oriented = bool(np.all(balance[count == 2] == 0)) if E else True
+    ncomp, _ = face_components(f, nv_all)
+    euler = V - E + F
+    genus = None
+    if closed and manifold and (2 * ncomp - euler) % 2 == 0:
+        genus = (2 * ncomp - euler) // 2
+    ndeg = int(degenerate_faces(vertices, f, min_area).size) if F else 0
+    return Topology(V, F, E, ncomp, euler, genus, closed, manifold, oriented, boundary,
+                    nm_edges, int(nm_verts), ndeg)
+
+
+def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Vertices whose incident faces form more than one fan (pinch points), ascending int64.
+
+    For each vertex, the faces around it are linked through the edges they share at that vertex;
+    a manifold vertex has exactly one linked group. Works on any mesh (boundaries allowed).
+    """
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    if f.shape[0] == 0:
+        return np.zeros(0, np.int64)
+    vf_offsets, vf = _neighbors_kernels.vertex_faces(f, np.int64(max(n_vertices, int(f.max()) + 1)))
+    return np.flatnonzero(_neighbors_kernels.fan_counts(f, vf_offsets, vf) > 1).astype(np.int64)
+
+
+def component_measures(vertices: np.ndarray, faces: np.ndarray) -> List[Dict]:
+    """Per connected component: faces, area (mm²), volume (mm³), sorted by volume descending.
+
+    Each entry is ``{"faces": index array, "area_mm2": float, "volume_mm3": float}``.
+    """
+    f = np.asarray(faces)
+    n, lab = face_components(f, len(vertices))
+    out = []
+    areas = face_areas(vertices, f)
+    for c in range(n):
+        idx = np.flatnonzero(lab == c)
+        out.append({"faces": idx, "area_mm2": float(areas[idx].sum()),
+                    "volume_mm3": signed_volume(vertices, f[idx])})
+    out.sort(key=lambda d: -abs(d["volume_mm3"]))
+    return out
+
+
+def closed_and_oriented(faces: np.ndarray, n_vertices: int) -> bool:
+    """Every edge has two faces using it once in each direction (closed and consistently
+    oriented; pinch vertices allowed) — the cheap part of :func:`anatomesh.core.model.mesh.topology`
+    that the ray directions need."""
+    _, count, balance = edge_face_counts(faces, n_vertices)
+    return bool(count.size and np.all(count == 2) and np.all(balance == 0))

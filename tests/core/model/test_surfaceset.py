@@ -1,0 +1,25 @@
+"""SurfaceSet.from_meshes: independent surfaces as one set, each shell giving its mesh back."""
+import numpy as np
+from helpers.meshes import icosphere, torus
+
+from anatomesh.core.geometry.topology import topology
+from anatomesh.core.model.mesh import Mesh, signed_volume
+from anatomesh.core.model.surfaceset import SurfaceSet
+
+
+def test_from_meshes_gives_each_mesh_back_as_its_shell():
+    sv, sf = icosphere(3, 10.0)
+    tv, tf = torus(30.0, 5.0)
+    meshes = [Mesh(sv, sf, name="skin", value=-500.0, color=(0.9, 0.7, 0.6)),
+              Mesh(tv + 100.0, tf, name="bone", value=300.0, color=(0.9, 0.9, 0.8))]
+    s = SurfaceSet.from_meshes(meshes, affine=np.eye(4), space="LPS")
+    assert s.lattice is None and s.n_faces == len(sf) + len(tf) and s.values() == [1, 2]
+    shells = s.shells()
+    for m, sh in zip(meshes, shells):
+        assert (sh.name, sh.value, sh.color, sh.space) == (m.name, m.value, m.color, "LPS")
+        assert sh.n_faces == m.n_faces
+        np.testing.assert_allclose(signed_volume(sh.vertices, sh.faces), signed_volume(m.vertices, m.faces),
+                                   rtol=1e-6)
+        assert topology(sh.vertices, sh.faces).genus == topology(m.vertices, m.faces).genus
+        np.testing.assert_array_equal(s.vertices[sh.meta["vertex_ids"]], sh.vertices)
+    assert topology(shells[1].vertices, shells[1].faces).genus == 1
