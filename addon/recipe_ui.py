@@ -33,7 +33,7 @@ _EXPORT_TO_CORE = {"STL": "stl", "PLY": "ply", "OBJ": "obj", "GLB": "glb", "GLTF
 # ---------------------------------------------------------------------------------------------
 def recipe_from_scene(context):
     """A core ``Recipe`` holding the scene's current Anatomesh settings."""
-    from ..app.run import Recipe
+    from ..app.recipe import Recipe
 
     s = context.scene.anatomesh
     r = Recipe(input=_abspath(s.filepath), series=s.series or None,

@@ -17,6 +17,7 @@ from ..core.io.mesh_files import MESH_SUFFIXES, read_mesh
 from ..core.model.errors import AnatomeshError
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
+from ..core.printing import fixes as printfix
 from ..core.printing.checks import check_parts
 
 
@@ -112,3 +113,28 @@ def check_files(paths, profile="fdm", min_wall: Optional[float] = None,
     rep = check_parts(meshes, profile, min_wall, min_gap, progress=sub(progress, 0.1, 1.0))
     rep["files"] = [str(p) for p in ([paths] if isinstance(paths, str) else paths)]
     return rep
+
+
+def fix_parts(meshes: List[Mesh], remove_tiny: Optional[float] = None, close_holes: Optional[int] = None,
+              separate: Optional[float] = None):
+    """Mesh fixes of the check flow on each part (:mod:`anatomesh.core.printing.fixes`): remove
+    shells under ``remove_tiny`` mm³, close holes of up to ``close_holes`` edges, pull touching
+    parts ``separate`` mm apart. Returns the fixed meshes and per part ``{"name", "summary"}``."""
+    fixed, done = [], []
+    for m in meshes:
+        did = []
+        if remove_tiny is not None:
+            m, info = printfix.remove_tiny(m, remove_tiny)
+            did += [f"removed {info['removed']} tiny shell(s)"] if info["removed"] else []
+        if close_holes is not None:
+            m, info = printfix.close_holes(m, close_holes)
+            did += [f"closed {info['closed']} hole(s)"] if info["closed"] else []
+            did += [f"{info['left_open']} larger hole(s) left open"] if info["left_open"] else []
+        fixed.append(m)
+        done.append(did)
+    if separate is not None:
+        fixed, info = printfix.separate_meshes(fixed, separate)
+        for i, j in info["pairs"]:
+            done[i].append(f"pulled {separate:g} mm away from {fixed[j].name}")
+            done[j].append(f"pulled {separate:g} mm away from {fixed[i].name}")
+    return fixed, [{"name": m.name, "summary": "; ".join(d) or "nothing to fix"} for m, d in zip(fixed, done)]

@@ -1,6 +1,7 @@
-"""Recipe files: every setting of a run in a small TOML file (read with :mod:`tomllib`).
+"""The recipe: every setting of a run, one dataclass that CLI flags, TOML files, the Blender panels
+and batch runs all fill, checked in one place (:func:`check_recipe`).
 
-The same settings the Blender panels hold and ``anatomesh mesh`` takes as flags, grouped by step::
+In a TOML file the settings are grouped by step::
 
     [input]
     path = "example_seg.nii.gz"        # relative paths are relative to this file's folder
@@ -21,7 +22,7 @@ The same settings the Blender panels hold and ``anatomesh mesh`` takes as flags,
     dir = "out"
     formats = ["stl", "3mf", "glb"]
 
-:func:`load_recipe` turns a file into a :class:`~anatomesh.app.run.Recipe` (unknown keys and
+:func:`load_recipe` turns a file into a :class:`Recipe` (unknown keys and
 wrongly typed values are one-line errors naming the key and what is allowed); :func:`dump_recipe`
 writes one back (by hand: TOML writing needs no extra dependency). ``anatomesh mesh`` stores the
 recipe of every run as ``recipe.toml`` next to its report, so ``anatomesh mesh --recipe
@@ -35,10 +36,123 @@ import math
 import os
 import tomllib
 from pathlib import Path
-from typing import Dict
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Union
 
 from ..core.model.errors import AnatomeshError
-from .run import Recipe
+from ..core.model.volume import SPACES
+from ..core.printing.checks import PROFILES as PRINTER_PROFILES
+
+SMOOTH_NONE = "none"
+SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept
+#: per-surface formats, whole-scene formats, and the ones that need Blender (bpy)
+SURFACE_FORMATS = ("stl", "ply", "obj", "3mf")
+SCENE_ONLY_FORMATS = ("glb", "blend", "png")
+FORMATS = SURFACE_FORMATS + SCENE_ONLY_FORMATS
+BLENDER_FORMATS = ("blend", "png")
+STAIRCASE = ("auto", "on", "off")
+PROFILES = tuple(PRINTER_PROFILES)
+RECIPE_FILE = "recipe.toml"
+
+
+@dataclass
+class Recipe:
+    """Everything a run needs. Paths may be strings; units are mm.
+
+    ``labels``: "all", or a list of label values and/or names (label maps only).
+    ``levels``: isovalues for scalar scans (required for them).
+    ``space``: the space every written vertex is in ("RAS" or "LPS").
+    ``formats``: any of :data:`FORMATS` ("stl", "ply", "obj", "3mf", "glb", "blend", "png").
+    ``smooth``: a preset or filter of :mod:`anatomesh.core.smooth.driver` ("organ" by default, "none" keeps
+    the raw surface); ``iterations``/``lam``/``mu`` override the preset, ``max_deviation`` (mm) caps
+    every vertex's displacement, ``damping_distance`` (mm) enables distance-aware damping,
+    ``staircase`` ("auto", "on", "off") the extra slice-axis passes for thick slices.
+    ``decimate`` (ratio of faces kept, 0–1] or ``target_faces``, and/or ``max_error`` (mm):
+    decimation after smoothing (:mod:`anatomesh.core.decimate.qem`; a label map's SurfaceSet as a
+    whole, so seams stay shared). With a ratio or face count, ``max_error`` caps the error (default:
+    one voxel, the largest spacing), so a target the shapes cannot reach stops short with a warning
+    instead of ruining small organs. ``check``: run the print checks (:func:`~anatomesh.core.printing.checks.
+    check_parts`) with ``profile`` ("fdm", "resin"), ``min_wall``/``min_gap`` (mm) overriding it.
+    Print fixes (label maps; each reported under ``fixes``): ``fuse`` — groups of labels (values
+    or names) merged into one solid each before extraction; ``thicken`` — grow parts thinner than
+    the minimum wall (``min_wall`` or the profile's) in the label map before extraction;
+    ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
+    so separately printed parts fit together (:mod:`anatomesh.core.printing.fixes`).
+    ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
+    ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
+    ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
+    every shell's topology), all from one progressive decimation run (:mod:`anatomesh.core.decimate.progressive`,
+    Hoppe 1996); 0 or 1: none.
+    """
+
+    input: Union[str, List[str]] = ""
+    out_dir: str = "out"
+    series: Optional[str] = None
+    volume_index: Optional[int] = None
+    label_table: Optional[str] = None
+    labels: Union[str, List[Union[int, str]]] = "all"
+    levels: List[float] = field(default_factory=list)
+    space: str = "RAS"
+    cap: bool = True
+    keep_largest: bool = False
+    min_component_mm3: float = 0.0
+    smooth: str = SMOOTH_DEFAULT
+    iterations: Optional[int] = None
+    lam: Optional[float] = None
+    mu: Optional[float] = None
+    max_deviation: Optional[float] = None
+    damping_distance: Optional[float] = None
+    staircase: str = "auto"
+    decimate: Optional[float] = None
+    target_faces: Optional[int] = None
+    max_error: Optional[float] = None
+    check: bool = False
+    profile: str = "fdm"
+    min_wall: Optional[float] = None
+    min_gap: Optional[float] = None
+    fuse: List[List[Union[int, str]]] = field(default_factory=list)
+    thicken: bool = False
+    clearance: Optional[float] = None
+    formats: List[str] = field(default_factory=lambda: ["stl"])
+    render_samples: int = 32
+    render_size: List[int] = field(default_factory=lambda: [960, 540])
+    lod: int = 0
+    report: Optional[str] = None
+    overwrite: bool = False
+
+
+def check_recipe(recipe: Recipe) -> None:
+    """Raise :class:`AnatomeshError` (one line, naming the setting) for a setting out of range."""
+    if not recipe.input:
+        raise AnatomeshError("no input scan: give a path (or input.path in a recipe)")
+    recipe.formats = [str(f).strip().lower().lstrip(".") for f in recipe.formats]
+    bad = [f for f in recipe.formats if f not in FORMATS]
+    if bad or not recipe.formats:
+        raise AnatomeshError(f"unknown --format {','.join(bad) or '(none)'}; use a comma list of "
+                             f"{', '.join(FORMATS)}")
+    for name, value, allowed in (("space", recipe.space, SPACES), ("staircase", recipe.staircase, STAIRCASE),
+                                 ("profile", recipe.profile, PROFILES)):
+        if value not in allowed:
+            raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+    if not (isinstance(recipe.lod, int) and 0 <= recipe.lod <= 8):
+        raise AnatomeshError(f"--lod is the number of GLB levels of detail, 0..8, got {recipe.lod!r}")
+    if recipe.decimate is not None and recipe.target_faces is not None:
+        raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
+                             "may come with either as a cap on the error)")
+    if recipe.decimate is not None and not 0.0 < recipe.decimate <= 1.0:
+        raise AnatomeshError(f"--decimate is the fraction of faces kept, in (0, 1], got {recipe.decimate}")
+    if recipe.target_faces is not None and (int(recipe.target_faces) != recipe.target_faces
+                                            or recipe.target_faces < 4):
+        raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
+    if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
+        raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
+    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance"):
+        value = getattr(recipe, name)
+        if value is not None and not value > 0:
+            raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
+    if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
+        raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
+
 
 #: TOML section → {TOML key: Recipe field}
 SECTIONS: Dict[str, Dict[str, str]] = {

@@ -63,7 +63,8 @@ def main():
 
     anatomesh_package()
     from anatomesh.core.model.errors import AnatomeshError
-    from anatomesh.app.run import Recipe, run
+    from anatomesh.app.run import run
+    from anatomesh.app.recipe import Recipe
 
     labels = "all" if args.labels == "all" else [t.strip() for t in args.labels.split(",") if t.strip()]
     recipe = Recipe(input=args.input, labels=labels, out_dir=args.out, decimate=args.decimate,

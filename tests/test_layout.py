@@ -2,7 +2,8 @@
 
 * imports point one way: ``addon → app → core``; inside ``core`` every stage imports only
   ``core.model``, ``core.geometry`` and itself (``core.geometry`` only ``core.model``);
-* no import cycle between modules, counting imports placed inside functions;
+* no import cycle between modules, counting imports placed inside functions (not the
+  ``if TYPE_CHECKING:`` ones, which never run);
 * no ``_private`` name is taken from another module, and a private module (``_kernels.py``) is
   imported only by the modules of its own folder;
 * ``core`` and ``app`` import without Blender; the root package imports without ``bpy``;
@@ -42,7 +43,10 @@ def _imports(name):
     """(target module, imported names, line) for every import of ``name``, at any depth."""
     path, is_pkg = MODULES[name]
     package = name if is_pkg else name.rpartition(".")[0]
-    for node in ast.walk(ast.parse(path.read_text())):
+    tree = ast.parse(path.read_text())
+    for block in [n for n in ast.walk(tree) if isinstance(n, ast.If) and _is_type_checking(n.test)]:
+        block.body = []  # `if TYPE_CHECKING:` imports never run: annotations only
+    for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and node.level:
             base = package.split(".")[: len(package.split(".")) - node.level + 1]
             target = ".".join(base + ([node.module] if node.module else []))
@@ -58,6 +62,11 @@ def _imports(name):
             for alias in node.names:
                 if alias.name.startswith("anatomesh."):
                     yield alias.name[len("anatomesh."):], None, node.lineno
+
+
+def _is_type_checking(test):
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
+        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _room(module):

@@ -9,11 +9,11 @@ cd "$(dirname "$0")/.."
 bash tools/setup_env.sh
 PY="${ANATOMESH_VENV:-.venv}/bin/python"
 OUT="${1:-demo_out}"
-"$PY" -m anatomesh.app.cli.main inspect data/sample/example_ct_sm.nii.gz
-"$PY" -m anatomesh.app.cli.main inspect data/sample/example_seg.nii.gz
-"$PY" -m anatomesh.app.cli.main mesh data/sample/example_seg.nii.gz --out "$OUT" --decimate 0.5 \
+"$PY" -m anatomesh.app.cli inspect data/sample/example_ct_sm.nii.gz
+"$PY" -m anatomesh.app.cli inspect data/sample/example_seg.nii.gz
+"$PY" -m anatomesh.app.cli mesh data/sample/example_seg.nii.gz --out "$OUT" --decimate 0.5 \
   --format stl,3mf,glb,blend,png --lod 3 --overwrite
-"$PY" -m anatomesh.app.cli.main mesh data/sample/example_ct_sm.nii.gz --level -500 --level 300 \
+"$PY" -m anatomesh.app.cli mesh data/sample/example_ct_sm.nii.gz --level -500 --level 300 \
   --out "$OUT/ct" --format stl --keep-largest --overwrite
 echo "demo output in $OUT/: per-organ STL+3MF, example_seg.3mf (all organs), example_seg.glb (+ _lod0..2),"
 echo "example_seg.blend + example_seg.png (Cycles), report.json, recipe.toml; ct/ (skin and bone)"

@@ -1,1 +1,46 @@
-"""TODO"""
+"""The ``anatomesh`` command: ``inspect``, ``mesh`` and ``check`` (one module each);
+``python -m anatomesh.app.cli`` runs it too.
+
+Exit codes (:mod:`.common`): 0 success, 1 a print check failed, 2 bad input — one line on stderr
+naming the file and the problem, no traceback unless ``--debug``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import List, Optional
+
+from ...core.model.errors import AnatomeshError, Cancelled
+from . import check, inspect, mesh
+from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return args.func(args)
+    except AnatomeshError as err:
+        if args.debug:
+            raise
+        print(f"error: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Cancelled:
+        print("cancelled", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
+    p.add_argument("--debug", action="store_true", help="show tracebacks")
+    subs = p.add_subparsers(dest="command")
+    for command in (inspect, mesh, check):
+        sp = command.add_parser(subs)
+        sp.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
+    return p

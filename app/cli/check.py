@@ -1,29 +1,26 @@
-"""``anatomesh check PATH...``: print-readiness checks of mesh files (see :mod:`.printcheck`).
+"""``anatomesh check PATH...``: print-readiness checks of mesh files, all parts together.
 
-Reads STL/PLY/OBJ/3MF files or a folder written by ``anatomesh mesh``, checks all parts together
-for a printer profile, prints a summary and optionally writes the JSON report. Optional fixes
-(``--remove-tiny``, ``--close-holes``, ``--separate``; :mod:`.printfix`) work on the meshes read
-and write the fixed parts to ``--out`` as STL, plus all of them in one print-ready ``parts.3mf``
-(a part per object, colours, unit mm); the checks then run on the fixed parts.
+Reads STL/PLY/OBJ/3MF files or a folder written by ``anatomesh mesh`` (:mod:`anatomesh.app.check`),
+checks all parts together for a printer profile (:func:`anatomesh.core.printing.checks.check_parts`),
+prints a summary and optionally writes the JSON report. Optional fixes (``--remove-tiny``,
+``--close-holes``, ``--separate``) work on the meshes read and write the fixed parts to ``--out``
+as STL, plus all of them in one print-ready ``parts.3mf``; the checks then run on the fixed parts.
 
 Exit codes: 0 every check passes, 1 a check fails, 2 bad input (one line on stderr).
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
-
-import numpy as np
-
 from typing import Dict, List
 
+from ...core.export.common import refuse_overwrite, unique_stems
+from ...core.export.mesh_files import write_stl
+from ...core.export.threemf import write_3mf
 from ...core.model.errors import AnatomeshError
-from ...core.printing.checks import GAP_REPORT_MM
-from ..check import read_parts
-
-EXIT_OK, EXIT_CHECK_FAILED = 0, 1
+from ...core.printing.checks import GAP_REPORT_MM, check_parts, resolve_profile
+from ..check import fix_parts, read_parts
+from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -48,50 +45,30 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
                                                 "parts.3mf (with a fix option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
-    p.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_check)
     return p
 
 
-def _json_default(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    raise TypeError(f"not JSON serialisable: {type(x).__name__}")
-
-
 def cmd_check(args) -> int:
-    from ...core.printing import checks as pc
-    from .main import TerminalProgress
-
     fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate))
     if fixing and not args.out:
         raise AnatomeshError("--remove-tiny/--close-holes/--separate write fixed files: add --out DIR")
     if args.out and not fixing:
         raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES "
                              "and/or --separate MM")
-    prof = pc.resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
-    progress = TerminalProgress("checking")
+    prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     meshes = read_parts(args.path)
     fixes = []
     if fixing:
-        meshes, fixes = _apply_fixes(meshes, args)
-    rep = pc.check_parts(meshes, prof, progress=progress)
+        meshes, fixes = _write_fixed(meshes, args)
+    rep = check_parts(meshes, prof, progress=TerminalProgress("checking"))
     rep["profile"]["name"] = args.profile if (args.min_wall is None and args.min_gap is None) \
         else f"{args.profile} (overridden)"
     rep["files"] = [str(p) for p in args.path]
     if fixes:
         rep["fixes"] = fixes
-    text = json.dumps(rep, indent=2, default=_json_default)
     if args.report:
-        path = Path(args.report)
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-        except OSError as exc:
-            raise AnatomeshError(f"cannot write the report ({exc.strerror}); choose another --report path",
-                                 path) from None
+        write_json(rep, args.report)
     for f in fixes:
         print(f"fixed {f['name']}: {f['summary']} -> {f['file']}")
     for line in summary_lines(rep):
@@ -101,58 +78,18 @@ def cmd_check(args) -> int:
     return EXIT_OK if rep["passed"] else EXIT_CHECK_FAILED
 
 
-def _apply_fixes(meshes, args):
-    """Apply the requested mesh fixes; write each part as STL and all in ``parts.3mf`` into ``args.out``."""
-    from ...core.printing import fixes as printfix
-    from ...core.export.mesh_files import write_stl
-    from ...core.export.threemf import write_3mf
-    from ..run import _slug
-
+def _write_fixed(meshes, args):
+    """Fix the parts; write each as STL and all in ``parts.3mf`` into ``args.out``."""
     out = Path(args.out)
-    plans = []
-    used = set()
-    for m in meshes:
-        stem = _slug(m.name)
-        while stem in used:
-            stem += "_"
-        used.add(stem)
-        plans.append(out / f"{stem}.stl")
+    plans = [out / f"{s}.stl" for s in unique_stems([m.name for m in meshes])]
     combined = out / "parts.3mf"
-    existing = [p for p in plans + [combined] if p.exists()]
-    if existing and not args.overwrite:
-        raise AnatomeshError(f"{len(existing)} file(s) already exist in --out (e.g. {existing[0].name}); "
-                             "pass --overwrite or choose another folder", out)
-    fixed, log = [], []
-    for m, path in zip(meshes, plans):
-        done = []
-        if args.remove_tiny is not None:
-            m, info = printfix.remove_tiny(m, args.remove_tiny)
-            if info["removed"]:
-                done.append(f"removed {info['removed']} tiny shell(s)")
-        if args.close_holes is not None:
-            m, info = printfix.close_holes(m, args.close_holes)
-            if info["closed"]:
-                done.append(f"closed {info['closed']} hole(s)")
-            if info["left_open"]:
-                done.append(f"{info['left_open']} larger hole(s) left open")
-        fixed.append(m)
-        log.append({"name": m.name, "file": str(path), "done": done})
-    if args.separate is not None:
-        fixed, info = printfix.separate_meshes(fixed, args.separate)
-        for i, j in info["pairs"]:
-            log[i]["done"].append(f"pulled {args.separate:g} mm away from {fixed[j].name}")
-            log[j]["done"].append(f"pulled {args.separate:g} mm away from {fixed[i].name}")
+    refuse_overwrite(plans + [combined], args.overwrite, "pass --overwrite or choose another --out folder")
+    fixed, log = fix_parts(meshes, args.remove_tiny, args.close_holes, args.separate)
     for m, path, entry in zip(fixed, plans, log):
         write_stl(m, path)
-        entry["summary"] = "; ".join(entry.pop("done")) or "nothing to fix"
+        entry["file"] = str(path)
     write_3mf(fixed, combined, title="fixed parts")
     return fixed, log
-
-
-if __name__ == "__main__":  # pragma: no cover
-    from .main import main
-
-    sys.exit(main(["check"] + sys.argv[1:]))
 
 
 def summary_lines(rep: Dict) -> List[str]:

@@ -237,7 +237,7 @@ def _surfaces_result(surfaces, v, f, fl, vertex_ids, face_ids):
     (``vertex_ids``/``face_ids``: the input index of each kept vertex and face)."""
     splits = _splits(surfaces)
     changes = {"vertices": v, "faces": f, "face_labels": fl}
-    if hasattr(surfaces, "lattice"):
+    if getattr(surfaces, "lattice", None) is not None:
         changes["lattice"] = np.asarray(surfaces.lattice)[vertex_ids]
     if len(splits):
         new_face = np.full(len(surfaces.faces), -1, np.int64)

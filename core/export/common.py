@@ -2,9 +2,10 @@
 from __future__ import annotations
 
 import os
+import re
 from contextlib import contextmanager
 from pathlib import Path
-from typing import List, Sequence
+from typing import List, Optional, Sequence
 
 import numpy as np
 
@@ -59,3 +60,33 @@ def atomic_write(path):
         tmp.unlink(missing_ok=True)
         raise
     os.replace(tmp, path)
+
+
+def file_stem(name: str) -> str:
+    """A file-name-safe stem of a surface or scan name (``"Lt Lung"`` → ``"Lt_Lung"``)."""
+    s = re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_")
+    return s or "surface"
+
+
+def unique_stems(names: Sequence[str], tags: Optional[Sequence[str]] = None) -> List[str]:
+    """One distinct file stem per name: a repeated stem gets ``_<tag>`` (``tags[i]``, e.g. the
+    label value), then underscores until it is free."""
+    used, out = set(), []
+    for i, name in enumerate(names):
+        stem = file_stem(name)
+        if stem in used and tags is not None:
+            stem = f"{stem}_{file_stem(str(tags[i]))}"
+        while stem in used:
+            stem += "_"
+        used.add(stem)
+        out.append(stem)
+    return out
+
+
+def refuse_overwrite(paths: Sequence, overwrite: bool,
+                     hint: str = "pass --overwrite to replace them or choose another output folder") -> None:
+    """Raise :class:`AnatomeshError` before anything is written when any of ``paths`` exists and
+    ``overwrite`` is False (nothing is ever replaced silently)."""
+    existing = [Path(p) for p in paths if Path(p).exists()]
+    if existing and not overwrite:
+        raise AnatomeshError(f"{len(existing)} output file(s) already exist (e.g. {existing[0]}); {hint}")

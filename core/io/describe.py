@@ -1,6 +1,6 @@
 """What a user needs to know about a scan before meshing it (``anatomesh inspect``).
 
-:func:`describe` returns plain JSON-ready facts; :func:`format_text` prints them for a terminal.
+:func:`describe` returns plain JSON-ready facts (the CLI's ``inspect`` prints them).
 """
 from __future__ import annotations
 
@@ -133,51 +133,6 @@ def _peak_bins(counts: np.ndarray, min_fraction: float = 0.005) -> List[int]:
         right = c[i + 1] if i + 1 < len(c) else -1.0
         if c[i] > left and c[i] >= right and counts[i] / total >= min_fraction:
             out.append(i)
-    return out
-
-
-def format_text(facts: Dict) -> str:
-    """Human-readable report of :func:`describe`'s facts."""
-    lines = [
-        f"format       {facts['format']}   modality {facts['modality']}",
-        f"shape        {' x '.join(str(s) for s in facts['shape'])} voxels   dtype {facts['dtype']}",
-        f"spacing      {' x '.join(f'{s:g}' for s in facts['spacing'])} mm   "
-        f"extent {' x '.join(f'{e:g}' for e in facts['extent_mm'])} mm",
-        f"orientation  {facts['orientation']} (voxel axes i, j, k point to these patient directions;"
-        f" coordinates in {facts['space']})",
-        "affine       voxel (i, j, k) -> mm in " + facts["space"],
-    ]
-    for row in facts["affine"]:
-        lines.append("             [" + "  ".join(f"{x:10.4f}" for x in row) + "]")
-    lines.append(f"values       {facts['min']} .. {facts['max']}")
-    if "histogram" in facts:
-        lines.append("histogram")
-        lines.extend(_text_histogram(facts["histogram"]))
-        peaks = facts["histogram"]["peaks"]
-        if peaks:
-            lines.append("peaks        " + ", ".join(
-                f"{p['value']:g}" + (f" ({p['tissue']})" if "tissue" in p else "") for p in peaks))
-    if "labels" in facts:
-        lines.append(f"labels       {len(facts['labels'])}")
-        lines.append(f"  {'value':>6}  {'name':<32} {'voxels':>10} {'volume mm3':>14}")
-        for lab in facts["labels"]:
-            lines.append(f"  {lab['value']:>6}  {lab['name']:<32} {lab['voxels']:>10} "
-                         f"{lab['volume_mm3']:>14.1f}")
-    for w in facts.get("warnings", []):
-        lines.append(f"warning      {w}")
-    return "\n".join(lines)
-
-
-def _text_histogram(hist: Dict, width: int = 50, rows: int = 16) -> List[str]:
-    counts = np.asarray(hist["counts"], dtype=np.float64)
-    edges = np.asarray(hist["edges"])
-    step = max(1, len(counts) // rows)
-    out = []
-    scale = np.log1p(counts).max() or 1.0
-    for i in range(0, len(counts), step):
-        c = counts[i:i + step].sum()
-        bar = "#" * int(round(width * np.log1p(c) / (scale + np.log(step))))
-        out.append(f"  {edges[i]:>9.1f} .. {edges[min(i + step, len(edges) - 1)]:>9.1f} |{bar}")
     return out
 
 

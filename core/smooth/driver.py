@@ -1111,7 +1111,7 @@ def smooth_surfaces(surfaces, method: str = DEFAULT, *, constraint="auto",
 def _regions(surfaces, is_set, s: MeshStructure):
     """(inside, outside) region ids per face and their count: labels of a SurfaceSet (the
     background −1), or the closed connected components of a Mesh."""
-    if is_set:
+    if is_set and surfaces.lattice is not None:
         fl = np.asarray(surfaces.face_labels, np.int64)
         values = np.unique(fl)
         values = values[values != surfaces.background]
@@ -1144,7 +1144,7 @@ def _surface_constraint(surfaces, is_set, constraint, affine, max_deviation) -> 
         return Constraint(max_deviation=max_deviation) if max_deviation is not None else None
     if constraint != "cell":
         raise AnatomeshError(f"constraint must be 'cell', None or a Constraint, got {constraint!r}")
-    if is_set:
+    if is_set and surfaces.lattice is not None:
         return lattice_constraint(surfaces.affine, surfaces.lattice, max_deviation=max_deviation)
     if affine is not None:
         return voxel_constraint(affine, max_deviation=max_deviation)

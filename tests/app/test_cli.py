@@ -9,7 +9,7 @@ import nibabel as nib
 import numpy as np
 import pytest
 
-from anatomesh.app.cli.main import main
+from anatomesh.app.cli import main
 from anatomesh.core.io.mesh_files import read_stl
 from conftest import SAMPLE, shared
 
@@ -155,7 +155,7 @@ def test_mesh_head_ct_dicom_skin_and_bone_closed(capsys, tmp_path):
 
 
 def test_console_script_entry_point(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "anatomesh.app.cli.main", "inspect", str(SEG), "--json"],
+    out = subprocess.run([sys.executable, "-m", "anatomesh.app.cli", "inspect", str(SEG), "--json"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["space"] == "RAS"

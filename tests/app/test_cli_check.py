@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from helpers.meshes import box
 
-from anatomesh.app.cli import main as cli
+from anatomesh.app.cli import main as cli_main
 from anatomesh.core.export.mesh_files import write_obj, write_ply, write_stl
 from anatomesh.core.io.mesh_files import read_mesh, split_nonmanifold
 from anatomesh.core.model.mesh import Mesh
@@ -17,7 +17,7 @@ REQUIRED_PART_KEYS = {"name", "closed", "manifold", "self_intersections", "min_w
 
 
 def run(capsys, *argv):
-    code = cli.main([str(a) for a in argv])
+    code = cli_main([str(a) for a in argv])
     out, err = capsys.readouterr()
     return code, out, err
 

@@ -6,7 +6,7 @@ import tomllib
 import pytest
 
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.app.run import Recipe
+from anatomesh.app.recipe import Recipe
 from anatomesh.app.recipe import SECTIONS, dump_recipe, load_recipe, recipe_from_text
 
 

@@ -13,7 +13,7 @@ import pytest
 from conftest import SAMPLE
 from helpers.meshes import box
 
-from anatomesh.app.cli import main as cli
+from anatomesh.app.cli import main as cli_main
 from anatomesh.core.export.mesh_files import write_stl
 from anatomesh.core.model.mesh import Mesh
 
@@ -69,7 +69,7 @@ def broken(tmp_path_factory):
 @pytest.fixture(scope="module")
 def meshed(tmp_path_factory):
     out = tmp_path_factory.mktemp("meshed")
-    assert cli.main(["mesh", str(SAMPLE / "example_seg.nii.gz"), "--labels", LABELS,
+    assert cli_main(["mesh", str(SAMPLE / "example_seg.nii.gz"), "--labels", LABELS,
                      "--out", str(out / "m")]) == 0
     rep = json.loads((out / "m" / "report.json").read_text())
     files = [out / "m" / s["files"]["stl"] for s in rep["surfaces"]]

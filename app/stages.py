@@ -1,0 +1,191 @@
+"""The stages of the one flow, each a function of (input, :class:`~anatomesh.app.recipe.Recipe`).
+
+:func:`anatomesh.app.run.run` chains them for the CLI, recipes, batch runs and ``blender -b``; the
+Blender panels call the very same functions for the same settings, so every door gives the same
+surfaces:
+
+=======================  ======================================================================
+:func:`prepare_volume`   print fixes on a label map before extraction (fuse labels, thicken)
+:func:`extract`          a :class:`~anatomesh.core.model.surfaceset.SurfaceSet`: conforming
+                         shells of a label map, or one isosurface per level of a scan
+:func:`smoothing`        the smoothing driver's method and settings for a recipe
+:func:`smooth`           the default (guarded) smoothing of the whole set
+:func:`decimate`         quadric decimation of the whole set (seams stay shared)
+:func:`shells`           one closed Mesh per label/level (the clearance fix pulls touching parts
+                         apart), small components dropped as asked
+=======================  ======================================================================
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Dict, List, Optional, Tuple
+
+import numpy as np
+
+from ..core.decimate.qem import decimate_surfaces
+from ..core.extract.isosurface import isosurfaces
+from ..core.extract.multilabel import label_surfaces
+from ..core.geometry.topology import component_measures
+from ..core.model.errors import AnatomeshError
+from ..core.model.labels import LabelInfo, select_labels
+from ..core.model.mesh import Mesh, compact
+from ..core.model.progress import Progress
+from ..core.model.surfaceset import SurfaceSet
+from ..core.model.volume import Volume
+from ..core.printing import fixes as printfix
+from ..core.printing.checks import resolve_profile
+from ..core.smooth.driver import smooth_surfaces
+from .recipe import SMOOTH_NONE, Recipe
+
+
+def prepare_volume(volume: Volume, recipe: Recipe) -> Tuple[Volume, List[Dict]]:
+    """Apply the label-map print fixes of ``recipe`` (fuse, thicken) before extraction.
+
+    Returns ``(volume, fixes)``: a fused label keeps the first label's value and colour and is
+    named after all of them ("liver+spleen"); ``fixes`` lists what each fix did. ``recipe.labels``
+    is rewritten to the fused values."""
+    fixes: List[Dict] = []
+    if not (recipe.fuse or recipe.thicken or recipe.clearance is not None):
+        return volume, fixes
+    if not volume.is_label_map:
+        raise AnatomeshError("--fuse, --thicken and --clearance work on label maps; this is a scalar "
+                             "scan", volume.meta.get("source"))
+    wanted = select_labels(volume, recipe.labels)  # named before fusing renames them
+    for group in recipe.fuse:
+        volume, wanted, fix = _fuse(volume, group, wanted)
+        fixes.append(fix)
+    if wanted is not None:
+        recipe.labels = wanted
+    if recipe.thicken:
+        wall = resolve_profile(recipe.profile, recipe.min_wall)["min_wall"]
+        volume, info = printfix.thicken_labels(volume, wall, labels=wanted)
+        fixes.append({"fix": "thicken", **info})
+    return volume, fixes
+
+
+def _fuse(volume: Volume, group, wanted):
+    values = select_labels(volume, group)
+    if not values or len(values) < 2:
+        raise AnatomeshError(f"--fuse needs two or more labels in a group, got {group!r}")
+    table = dict(volume.labels or {})
+    volume, info = printfix.fuse_labels(volume, values)
+    names = [table[v].name if v in table else str(v) for v in values]
+    first = table.get(values[0], LabelInfo(values[0], str(values[0])))
+    table[values[0]] = dataclasses.replace(first, name="+".join(names))
+    for v in values[1:]:
+        table.pop(v, None)
+    if wanted is not None:
+        wanted = list(dict.fromkeys(values[0] if w in values else w for w in wanted))
+    return dataclasses.replace(volume, labels=table), wanted, {"fix": "fuse", **info, "name": "+".join(names)}
+
+
+def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None) -> SurfaceSet:
+    """The surfaces of ``volume`` as one SurfaceSet: a label map's conforming shells (the labels
+    of ``recipe.labels``), or a scan's isosurfaces at ``recipe.levels`` (one label per level)."""
+    source = volume.meta.get("source")
+    if volume.is_label_map:
+        if recipe.levels:
+            raise AnatomeshError("--level is for scalar scans; this is a label map (use --labels)", source)
+        return label_surfaces(volume, values=select_labels(volume, recipe.labels), progress=progress)
+    if not recipe.levels:
+        raise AnatomeshError("this is a scalar scan: give one or more isovalues with --level "
+                             "(see `anatomesh inspect` for the histogram peaks)", source)
+    meshes = isosurfaces(volume, list(recipe.levels), cap=recipe.cap, progress=progress)
+    return SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
+
+
+def smoothing(recipe: Recipe) -> Tuple[str, Dict]:
+    """``(method, settings)`` of the smoothing driver for ``recipe``: the preset or filter name and
+    the keyword arguments of :func:`anatomesh.core.smooth.driver.smooth_surfaces` (iterations,
+    λ, μ, max deviation, damping distance, staircase)."""
+    settings = {k: v for k, v in (("iterations", recipe.iterations), ("lam", recipe.lam),
+                                  ("mu", recipe.mu)) if v is not None}
+    settings.update(max_deviation=recipe.max_deviation, damping_distance=recipe.damping_distance,
+                    staircase={"auto": "auto", "on": True, "off": False}[recipe.staircase])
+    return recipe.smooth or SMOOTH_NONE, settings
+
+
+def smooth(surfaces: SurfaceSet, recipe: Recipe,
+           progress: Optional[Progress] = None) -> Tuple[SurfaceSet, Dict]:
+    """The whole set smoothed at once (seams move once, for both labels) with the default guards
+    (fold guard, volumes restored, untangle); returns the new set and the smoothing report as a
+    dict (``method``, ``params``, ``seconds``, ``shells`` keyed by the shell's value, ``warnings``)."""
+    method, settings = smoothing(recipe)
+    if method == SMOOTH_NONE:
+        return surfaces, {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
+    out, rep = smooth_surfaces(surfaces, method, progress=progress, **settings)
+    return out, rep.as_dict()
+
+
+def decimate(surfaces: SurfaceSet, recipe: Recipe, default_cap: Optional[float] = None,
+             progress: Optional[Progress] = None) -> Tuple[SurfaceSet, Optional[Dict]]:
+    """Decimate the whole set (seams stay shared, shells closed) to the recipe's target.
+
+    A ratio or face-count target is capped by ``recipe.max_error`` or else ``default_cap`` (mm,
+    the run passes one voxel): the run stops short rather than exceed it. Returns
+    ``(surfaces, summary)``; ``summary`` is None without a target, else the target, face counts,
+    the worst shell's ``hausdorff_mm``/``mean_mm``, ``seconds``, ``target_met`` or
+    ``error_bound_met``, and ``shells`` keyed by the shell's value."""
+    target = {k: v for k, v in (("ratio", recipe.decimate), ("target_faces", recipe.target_faces),
+                                ("max_error", recipe.max_error)) if v is not None}
+    if not target:
+        return surfaces, None
+    if "target_faces" in target:
+        target["target_faces"] = int(target["target_faces"])
+    by_default = "max_error" not in target and default_cap is not None
+    if by_default:
+        target["max_error"] = round(default_cap, 4)
+    out, rep = decimate_surfaces(surfaces, progress=progress, **target)
+    summary = {k: rep[k] for k in ("faces_before", "faces_after", "seconds") if k in rep}
+    summary["target"] = {(k + "_mm" if k == "max_error" else k): v for k, v in target.items()}
+    if by_default:
+        summary["target"]["max_error_mm_source"] = "default cap: one voxel"
+    shells = {value_key(surfaces.shell_values.get(int(k), k)): v for k, v in rep["shells"].items()}
+    summary["hausdorff_mm"] = max((float(s["hausdorff_mm"]) for s in shells.values()), default=0.0)
+    summary["mean_mm"] = max((float(s["mean_mm"]) for s in shells.values()), default=0.0)
+    summary["shells"] = shells
+    for flag in ("target_met", "error_bound_met"):
+        if flag in rep:
+            summary[flag] = bool(rep[flag])
+    return out, summary
+
+
+def shells(surfaces: SurfaceSet, recipe: Recipe) -> Tuple[List[Mesh], List[Dict], Optional[Dict]]:
+    """One closed Mesh per label (or level): pulled apart along shared interfaces by the clearance
+    fix when ``recipe.clearance`` (mm) is set, then cleaned as the recipe asks (``keep_largest``,
+    ``min_component_mm3``). Returns the meshes, what cleaning dropped per mesh, and the clearance
+    fix's entry (None without it)."""
+    fix = None
+    if recipe.clearance is not None:
+        meshes, info = printfix.separate_parts(surfaces, recipe.clearance)
+        fix = {"fix": "clearance", **info}
+    else:
+        meshes = surfaces.shells()
+    return meshes, [clean(m, recipe) for m in meshes], fix
+
+
+def clean(m: Mesh, recipe: Recipe) -> Dict:
+    """Apply keep-largest / min-component to ``m`` in place; returns what was dropped."""
+    dropped = []
+    if m.n_faces and (recipe.keep_largest or recipe.min_component_mm3 > 0):
+        keep = []
+        for i, c in enumerate(component_measures(m.vertices, m.faces)):
+            if (recipe.keep_largest and i > 0) or abs(c["volume_mm3"]) < recipe.min_component_mm3:
+                dropped.append({"volume_mm3": round(c["volume_mm3"], 3), "area_mm2": round(c["area_mm2"], 3),
+                                "faces": int(len(c["faces"]))})
+            else:
+                keep.append(c["faces"])
+        if dropped:
+            faces = m.faces[np.sort(np.concatenate(keep))] if keep else m.faces[:0]
+            m.vertices, m.faces, m.normals, used = compact(m.vertices, faces, m.normals)
+            if m.meta.get("vertex_ids") is not None:  # index into the SurfaceSet stays valid
+                m.meta["vertex_ids"] = np.asarray(m.meta["vertex_ids"])[used]
+    return {"dropped_components": dropped}
+
+
+def value_key(value) -> str:
+    """Report key of a label value or isovalue (``5`` not ``5.0``)."""
+    if value is None:
+        return "None"
+    v = float(value)
+    return str(int(v)) if v.is_integer() else str(v)
