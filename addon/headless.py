@@ -2,7 +2,7 @@
 
 ``anatomesh mesh --format blend,png`` ends here (the only place the command line reaches
 Blender): :func:`write_blend` starts an empty file, adds the surfaces through the very function
-the Extract button uses (:func:`anatomesh.addon.operators.scan_to_scene`: one collection named
+the Extract button uses (:func:`anatomesh.addon.operators.scan.scan_to_scene`: one collection named
 after the scan, one object per label or level named after it, its material and colour, the custom
 properties, the live-smoothing cache), frames a camera from the patient's front, lights the scene
 and saves it; with ``render_png`` it also renders the view with Cycles on the CPU.
@@ -22,7 +22,7 @@ from typing import Optional, Sequence, Tuple
 import bpy
 import numpy as np
 
-from . import live, operators, scene
+from . import live, scan, scene
 
 #: organs made see-through in the picture (name contains one of these), with their opacity
 SEE_THROUGH = ("lung",)
@@ -97,11 +97,11 @@ def result_to_scene(context, result) -> bpy.types.Collection:
         items.append((m, m.value, m.name, tuple(m.color)[:3], shared))
     surface = None
     if sset is not None:
-        surface = operators.set_surface(sset)
+        surface = scan.set_surface(sset)
         if _decimated(result):
             surface.lattice = None  # decimated vertices left their voxel corners: box around them
     warnings = list(result.volume.warnings) + list(getattr(sset, "warnings", []) or [])
-    coll = operators.scan_to_scene(context, result.volume, items, surface, warnings)
+    coll = scan.scan_to_scene(context, result.volume, items, surface, warnings)
     live.set_scan_settings(coll, smooth_iterations=0)  # the pipeline smoothed already
     recipe = getattr(result, "recipe", None)
     if recipe is not None:

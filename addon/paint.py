@@ -19,11 +19,9 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty
-from bpy.types import Operator
 
 from . import bridge
-from .operators import active_scan, guarded
+from .common import active_scan
 
 #: colormaps: control points (position 0..1, r, g, b), linear in between
 COLORMAPS: Dict[str, np.ndarray] = {
@@ -191,42 +189,3 @@ def target_objects(context) -> list:
         return sel
     coll = active_scan(context)
     return scene.surface_objects(coll) if coll is not None else []
-
-
-class ANATOMESH_OT_paint(Operator):
-    """Colour Anatomesh surfaces by curvature, distance to the unsmoothed surface, wall thickness or gap"""
-
-    bl_idname = "anatomesh.paint"
-    bl_label = "Paint Heat Map"
-    bl_options = {"REGISTER", "UNDO"}
-
-    mode: EnumProperty(name="Values", items=[
-        ("CURVATURE", "Curvature", "Mean curvature (1/mm): blue concave, red convex"),
-        ("DISTANCE", "Distance", "Distance to the unsmoothed surface (mm)"),
-        ("THICKNESS", "Thickness", "Wall thickness (mm): red below the minimum wall"),
-        ("GAP", "Gap", "Distance to the nearest other part (mm): red where parts touch"),
-    ], default="THICKNESS")
-    min_wall: FloatProperty(name="Minimum Wall", default=0.8, min=0.01, unit="LENGTH",
-                            description="Thickness maps run red (0) to blue (twice this)")
-
-    @guarded
-    def execute(self, context):
-        objs = target_objects(context)
-        if not objs:
-            self.report({"WARNING"}, "No Anatomesh surfaces: select some or import a scan")
-            return {"CANCELLED"}
-        paint_mode(objs, self.mode, min_wall=self.min_wall)
-        show_vertex_colors(context)
-        self.report({"INFO"}, f"Painted {self.mode.lower()} on {len(objs)} object(s)")
-        return {"FINISHED"}
-
-
-CLASSES = (ANATOMESH_OT_paint,)
-
-
-def register() -> None:
-    """Register properties this module owns (classes are registered from CLASSES by the package)."""
-
-
-def unregister() -> None:
-    """Remove what :func:`register` added."""

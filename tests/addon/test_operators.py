@@ -254,7 +254,7 @@ def test_export_files_reimport_with_same_counts_and_extents(scan, mods, volume, 
 def test_export_refuses_to_overwrite(scan, tmp_path):
     out = tmp_path / "stl"
     assert bpy.ops.anatomesh.export(directory=str(out), format="STL", collection=scan.name) == {"FINISHED"}
-    with pytest.raises(RuntimeError, match="exist already"):
+    with pytest.raises(RuntimeError, match="already exist"):
         bpy.ops.anatomesh.export(directory=str(out), format="STL", collection=scan.name)
     assert bpy.ops.anatomesh.export(directory=str(out), format="STL", collection=scan.name,
                                     overwrite=True) == {"FINISHED"}
@@ -381,7 +381,7 @@ def test_panels_draw_with_existing_properties(addon, empty_scene, seg_path, tabl
     if state == "extracted":
         bpy.ops.anatomesh.import_scan(filepath=seg_path, label_table=table_path, extract=True)
         bpy.context.view_layer.objects.active = bpy.data.objects["liver"]
-    panels = sys.modules[addon.__name__ + ".addon.panels"]
+    panels = sys.modules[addon.__name__ + ".addon.ui.panels"]
     drawn = []
     for cls in panels.CLASSES:
         if cls.__name__.startswith("ANATOMESH_PT"):

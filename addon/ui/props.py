@@ -13,6 +13,10 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        FloatVectorProperty, IntProperty, PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
+from .. import scene
+from ..common import active_scan
+from ..decimation import PREVIEW_MODIFIER, preview_ratios, set_preview
+
 SPACE_ITEMS = (
     ("RAS", "RAS", "x toward the patient's right, y anterior, z superior (NIfTI, most Blender scenes)"),
     ("LPS", "LPS", "x toward the patient's left, y posterior, z superior (DICOM, ITK, 3D Slicer files); "
@@ -53,13 +57,13 @@ EXPORT_SELECTION_ITEMS = (
 
 
 def _live_update(self, context):
-    from . import live
+    from .. import live
 
     live.on_scan_settings_changed(self, context)
 
 
 def _look_update(self, context):
-    from . import live
+    from .. import live
 
     live.on_look_changed(self, context)
 
@@ -151,15 +155,91 @@ class ANATOMESH_PG_scan(PropertyGroup):
                                 update=_look_update)
 
 
-CLASSES = (ANATOMESH_PG_label, ANATOMESH_PG_level, ANATOMESH_PG_settings, ANATOMESH_PG_scan)
+TARGET_ITEMS = (
+    ("RATIO", "Ratio", "Keep this fraction of the faces"),
+    ("FACES", "Face count", "Keep about this many faces, all surfaces of the scan together"),
+    ("ERROR", "Max error", "Remove as many faces as possible while no point moves farther than "
+                           "this from the surface, mm (measured: symmetric Hausdorff distance)"),
+)
+
+
+def _preview_update(self, context):
+    """A target value changed: refresh a preview that is on (ratio and face count only; a max
+    error needs a core run: press Preview again)."""
+    if self.target == "ERROR":
+        return
+    coll = active_scan(context)
+    if coll is None:
+        return
+    objs = [o for o in scene.surface_objects(coll) if PREVIEW_MODIFIER in o.modifiers]
+    if objs:
+        try:
+            set_preview(objs, preview_ratios(objs, self.target, self.ratio, self.faces, 0.0))
+        except Exception as exc:  # an update callback must never raise into the UI
+            print(f"Anatomesh: decimate preview failed: {exc}")
+
+
+class ANATOMESH_PG_decimate(PropertyGroup):
+    """Decimation settings of the scene (``Scene.anatomesh_decimate``)."""
+
+    target: EnumProperty(name="Target", items=TARGET_ITEMS, default="RATIO", update=_preview_update)
+    ratio: FloatProperty(name="Ratio", default=0.1, min=0.001, max=1.0, subtype="FACTOR",
+                         update=_preview_update, description="Fraction of the faces to keep")
+    faces: IntProperty(name="Faces", default=50000, min=4, update=_preview_update,
+                       description="Faces to keep, all surfaces of the scan together")
+    max_error: FloatProperty(name="Max error", default=1.0, min=0.0, soft_max=5.0, unit="LENGTH",
+                             description="Largest distance between the result and the surface "
+                                         "before, mm")
+
+
+def _profile_changed(self, context):
+    from ...core.printing.checks import PROFILES
+
+    prof = PROFILES[self.profile.lower()]
+    self.min_wall, self.min_gap = prof["min_wall"], prof["min_gap"]
+
+
+class ANATOMESH_PG_print_problem(PropertyGroup):
+    part: StringProperty(name="Part", description="Object the problem is on")
+    other: StringProperty(name="Other Part", description="The other object of a gap or crossing")
+    kind: StringProperty(name="Problem")
+    value: FloatProperty(name="Value", description="Thinnest wall, gap (mm) or count")
+    unit: StringProperty(name="Unit", default="mm")
+    location: FloatVectorProperty(name="Location", size=3, subtype="XYZ", unit="LENGTH")
+
+
+class ANATOMESH_PG_print(PropertyGroup):
+    profile: EnumProperty(name="Printer", items=[
+        ("FDM", "FDM (0.4 mm nozzle)", "Filament printer: min wall 0.8 mm, min gap 0.5 mm"),
+        ("RESIN", "Resin", "Resin printer: min wall 0.4 mm, min gap 0.2 mm"),
+    ], default="FDM", update=_profile_changed)
+    min_wall: FloatProperty(name="Min Wall", default=0.8, min=0.01, soft_max=5.0, unit="LENGTH",
+                            description="Thinnest wall the printer makes (mm)")
+    min_gap: FloatProperty(name="Min Gap", default=0.5, min=0.0, soft_max=5.0, unit="LENGTH",
+                           description="Narrowest gap between parts that stays open (mm)")
+    selected_only: BoolProperty(name="Selected Only", default=False,
+                                description="Check the selected objects instead of all Anatomesh objects")
+    problems: CollectionProperty(type=ANATOMESH_PG_print_problem)
+    problem_index: IntProperty(name="Problem", default=0)
+    checked: BoolProperty(default=False)
+    passed: BoolProperty(default=False)
+    summary: StringProperty(name="Summary")
+
+
+#: property groups, in registration order (a group before the groups that point to it)
+CLASSES = (ANATOMESH_PG_label, ANATOMESH_PG_level, ANATOMESH_PG_settings, ANATOMESH_PG_scan,
+           ANATOMESH_PG_decimate, ANATOMESH_PG_print_problem, ANATOMESH_PG_print)
+#: where the settings live: (owner type, attribute, property group)
+_POINTERS = (("Scene", "anatomesh", ANATOMESH_PG_settings), ("Collection", "anatomesh", ANATOMESH_PG_scan),
+             ("Scene", "anatomesh_decimate", ANATOMESH_PG_decimate), ("Scene", "anatomesh_print", ANATOMESH_PG_print))
 
 
 def register_properties() -> None:
-    bpy.types.Scene.anatomesh = PointerProperty(type=ANATOMESH_PG_settings)
-    bpy.types.Collection.anatomesh = PointerProperty(type=ANATOMESH_PG_scan)
+    for owner, attr, group in _POINTERS:
+        setattr(getattr(bpy.types, owner), attr, PointerProperty(type=group))
 
 
 def unregister_properties() -> None:
-    for owner in (bpy.types.Scene, bpy.types.Collection):
-        if hasattr(owner, "anatomesh"):
-            del owner.anatomesh
+    for owner, attr, _ in _POINTERS:
+        if hasattr(getattr(bpy.types, owner), attr):
+            delattr(getattr(bpy.types, owner), attr)

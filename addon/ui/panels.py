@@ -2,7 +2,9 @@
 
 from bpy.types import Panel, UIList
 
-from .operators import active_scan
+from .. import scene
+from ..common import active_scan
+from ..decimation import PREVIEW_MODIFIER
 
 
 class ANATOMESH_UL_labels(UIList):
@@ -153,11 +155,111 @@ def menu_import(self, context):
     self.layout.operator("anatomesh.import_scan", text="Medical Scan / Label Map (Anatomesh)")
 
 
-CLASSES = (
-    ANATOMESH_UL_labels,
-    ANATOMESH_PT_import,
-    ANATOMESH_PT_labels,
-    ANATOMESH_PT_smooth,
-    ANATOMESH_PT_look,
-    ANATOMESH_PT_export,
-)
+
+class ANATOMESH_PT_decimate(_Base, Panel):
+    bl_label = "Decimate"
+    bl_idname = "ANATOMESH_PT_decimate"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.anatomesh_decimate
+        col = layout.column(align=True)
+        col.prop(s, "target")
+        col.prop(s, {"RATIO": "ratio", "FACES": "faces", "ERROR": "max_error"}[s.target])
+        coll = active_scan(context)
+        if coll is None:
+            layout.label(text="Extract surfaces first")
+            return
+        objs = scene.surface_objects(coll)
+        faces = sum(len(o.data.polygons) for o in objs)
+        layout.label(text=f"{coll.name}: {faces:,} faces", icon="OUTLINER_COLLECTION")
+        row = layout.row(align=True)
+        previewing = any(PREVIEW_MODIFIER in o.modifiers for o in objs)
+        op = row.operator("anatomesh.decimate_preview", text="Preview", icon="HIDE_OFF")
+        _fill_decimate(op, s, coll)
+        if previewing:
+            op = row.operator("anatomesh.decimate_preview", text="", icon="X")
+            op.collection, op.clear = coll.name, True
+        op = row.operator("anatomesh.decimate_apply", text="Apply", icon="CHECKMARK")
+        _fill_decimate(op, s, coll)
+        measured = [o for o in objs if "anatomesh_decimation_max_error_mm" in o]
+        if not measured:
+            return
+        box = layout.box()
+        box.label(text="Measured error (max / mean mm)")
+        obj = context.active_object
+        shown = sorted(measured, key=lambda o: -o["anatomesh_decimation_max_error_mm"])
+        if obj is not None and obj in measured:
+            shown = [obj] + [o for o in shown if o != obj]
+        for o in shown[:12]:
+            row = box.row()
+            row.label(text=o.get("anatomesh_name", o.name), icon="OBJECT_DATA" if o == obj else "NONE")
+            row.label(text=f"{o['anatomesh_decimation_max_error_mm']:.2f} / "
+                           f"{o['anatomesh_decimation_mean_error_mm']:.2f}")
+            row.label(text=f"{o.get('anatomesh_faces_before', 0):,} → {len(o.data.polygons):,}")
+        if len(shown) > 12:
+            box.label(text=f"... {len(shown) - 12} more (largest error first)")
+
+class ANATOMESH_UL_print_problems(UIList):
+    bl_idname = "ANATOMESH_UL_print_problems"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        row.label(text=item.part + (f" – {item.other}" if item.other else ""), icon="ERROR")
+        row.label(text=item.kind)
+        unit = f" {item.unit}" if item.unit else ""
+        row.label(text=f"{item.value:.2f}{unit}" if item.unit == "mm" else
+                  (f"{item.value:g}{unit}" if unit else ""))
+        op = row.operator("anatomesh.print_select_problem", text="", icon="VIEWZOOM")
+        op.index = index
+
+
+class ANATOMESH_PT_print(_Base, Panel):
+    bl_label = "Print"
+    bl_idname = "ANATOMESH_PT_print"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        s = context.scene.anatomesh_print
+        col = self.layout.column(align=True)
+        col.prop(s, "profile", text="")
+        col.prop(s, "min_wall")
+        col.prop(s, "min_gap")
+        col.prop(s, "selected_only")
+        self.layout.operator("anatomesh.print_check", icon="CHECKMARK")
+        if s.checked:
+            self.layout.label(text=s.summary, icon="CHECKMARK" if s.passed else "ERROR")
+        if len(s.problems):
+            self.layout.template_list("ANATOMESH_UL_print_problems", "", s, "problems", s,
+                                      "problem_index", rows=4)
+        row = self.layout.row(align=True)
+        op = row.operator("anatomesh.paint", text="Thickness", icon="MOD_SOLIDIFY")
+        op.mode = "THICKNESS"
+        op.min_wall = s.min_wall
+        op = row.operator("anatomesh.paint", text="Gaps", icon="MOD_LENGTH")
+        op.mode = "GAP"
+
+
+class ANATOMESH_PT_recipe(_Base, Panel):
+    bl_label = "Recipe"
+    bl_idname = "ANATOMESH_PT_recipe"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        col = self.layout.column(align=True)
+        col.operator("anatomesh.recipe_save", text="Save Recipe...", icon="FILE_TICK")
+        col.operator("anatomesh.recipe_load", text="Load Recipe...", icon="FILE_FOLDER")
+        self.layout.label(text="Runs headless: anatomesh mesh --recipe FILE", icon="CONSOLE")
+
+
+#: lists and panels, in the sidebar's order
+CLASSES = (ANATOMESH_UL_labels, ANATOMESH_UL_print_problems, ANATOMESH_PT_import, ANATOMESH_PT_labels,
+           ANATOMESH_PT_smooth, ANATOMESH_PT_look, ANATOMESH_PT_decimate, ANATOMESH_PT_print,
+           ANATOMESH_PT_export, ANATOMESH_PT_recipe)
+
+
+def _fill_decimate(op, s, coll):
+    """The Decimate panel's target on an operator button."""
+    op.collection, op.target, op.ratio = coll.name, s.target, s.ratio
+    op.faces, op.max_error = s.faces, s.max_error

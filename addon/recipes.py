@@ -1,43 +1,27 @@
-"""Anatomesh add-on: save/load the current settings as a recipe TOML file (the same file
-``anatomesh mesh --recipe`` reads, see :mod:`anatomesh.app.recipe`).
-
-* ``anatomesh.recipe_save``: the scene's Anatomesh settings (scan, label ticks or isovalues,
-  smoothing of the active scan or the defaults, the Decimate panel's target when the active scan
-  was decimated, the Print panel's printer when its check was run, export folder and format) →
-  a recipe file.
-* ``anatomesh.recipe_load``: a recipe file → those settings (a decimation target goes into the
-  Decimate panel, the print check's printer into the Print panel); the scan is read so the label list shows the recipe's choice (and, with
-  ``extract``, the surfaces are made at once).
-
-Paths in a saved recipe are relative to the recipe's folder when they share one.
-"""
-
-import os
+"""The scene's Anatomesh settings as a :class:`~anatomesh.app.recipe.Recipe` and back: the
+same settings ``anatomesh mesh --recipe`` reads."""
+from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, StringProperty
-from bpy.types import Operator, Panel
-from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from .operators import _abspath, active_scan, guarded, load_volume
-from .panels import _Base
+from .common import abspath, active_scan, load_volume
+
 
 #: UI smoothing method → core filter name (TAUBIN with "Stay in voxel" is core's "organ" preset)
 _UI_TO_CORE = {"LAPLACIAN": "laplacian", "HC": "hc", "MEAN_CURVATURE": "mean_curvature"}
+
+
 #: UI export format → core output format
 _EXPORT_TO_CORE = {"STL": "stl", "PLY": "ply", "OBJ": "obj", "GLB": "glb", "GLTF": "glb"}
 
 
-# ---------------------------------------------------------------------------------------------
-# settings ↔ Recipe
-# ---------------------------------------------------------------------------------------------
 def recipe_from_scene(context):
     """A core ``Recipe`` holding the scene's current Anatomesh settings."""
     from ..app.recipe import Recipe
 
     s = context.scene.anatomesh
-    r = Recipe(input=_abspath(s.filepath), series=s.series or None,
-               label_table=_abspath(s.label_table) or None, space=s.space)
+    r = Recipe(input=abspath(s.filepath), series=s.series or None,
+               label_table=abspath(s.label_table) or None, space=s.space)
     if s.kind == "LABELS" and len(s.labels):
         chosen = [int(item.value) for item in s.labels if item.include]
         r.labels = "all" if len(chosen) == len(s.labels) else chosen
@@ -57,7 +41,7 @@ def recipe_from_scene(context):
         elif d.max_error > 0:
             r.max_error = float(d.max_error)
     _print_to_recipe(r, getattr(context.scene, "anatomesh_print", None))
-    r.out_dir = _abspath(s.export_dir) or "anatomesh_out"
+    r.out_dir = abspath(s.export_dir) or "anatomesh_out"
     r.formats = [_EXPORT_TO_CORE.get(s.export_format, "stl")]
     return r
 
@@ -152,80 +136,3 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             item.value, item.name = float(lv), f"level {lv:g}"
     if extract:
         bpy.ops.anatomesh.extract()
-
-
-# ---------------------------------------------------------------------------------------------
-# operators and panel
-# ---------------------------------------------------------------------------------------------
-class ANATOMESH_OT_recipe_save(Operator, ExportHelper):
-    """Save the current Anatomesh settings as a recipe (TOML) for `anatomesh mesh --recipe`"""
-
-    bl_idname = "anatomesh.recipe_save"
-    bl_label = "Save Recipe"
-    bl_options = {"REGISTER"}
-
-    filename_ext = ".toml"
-    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
-    filepath: StringProperty(name="File", subtype="FILE_PATH")
-
-    @guarded
-    def execute(self, context):
-        from ..core.model.errors import AnatomeshError
-        from ..app.recipe import dump_recipe
-
-        path = _abspath(self.filepath)
-        if not path:
-            raise AnatomeshError("no recipe file chosen: pass filepath=")
-        if not context.scene.anatomesh.filepath:
-            raise AnatomeshError("no scan in the Import panel: read a scan before saving its recipe")
-        text = dump_recipe(recipe_from_scene(context), base=os.path.dirname(path))
-        os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        self.report({"INFO"}, f"Saved recipe {path}")
-        return {"FINISHED"}
-
-
-class ANATOMESH_OT_recipe_load(Operator, ImportHelper):
-    """Load a recipe (TOML): scan, labels or isovalues, smoothing and export settings"""
-
-    bl_idname = "anatomesh.recipe_load"
-    bl_label = "Load Recipe"
-    bl_options = {"REGISTER", "UNDO"}
-
-    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
-    filepath: StringProperty(name="File", subtype="FILE_PATH")
-    extract: BoolProperty(name="Extract now", default=False,
-                          description="Create the recipe's surfaces right away")
-
-    @guarded
-    def execute(self, context):
-        from ..app.recipe import load_recipe
-
-        recipe = load_recipe(_abspath(self.filepath))
-        apply_recipe(context, recipe, self.extract)
-        self.report({"INFO"}, f"Loaded recipe {os.path.basename(self.filepath)}")
-        return {"FINISHED"}
-
-
-class ANATOMESH_PT_recipe(_Base, Panel):
-    bl_label = "Recipe"
-    bl_idname = "ANATOMESH_PT_recipe"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        col = self.layout.column(align=True)
-        col.operator("anatomesh.recipe_save", text="Save Recipe...", icon="FILE_TICK")
-        col.operator("anatomesh.recipe_load", text="Load Recipe...", icon="FILE_FOLDER")
-        self.layout.label(text="Runs headless: anatomesh mesh --recipe FILE", icon="CONSOLE")
-
-
-CLASSES = (ANATOMESH_OT_recipe_save, ANATOMESH_OT_recipe_load, ANATOMESH_PT_recipe)
-
-
-def register() -> None:
-    """Nothing besides the classes (registered from CLASSES by the package)."""
-
-
-def unregister() -> None:
-    """Nothing to remove (see :func:`register`)."""

@@ -18,7 +18,7 @@ from helpers.meshes import box
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.scene"], sys.modules[name + ".addon.print_ui"]
+    return sys.modules[name + ".addon.scene"], sys.modules[name + ".addon.printing"]
 
 
 @pytest.fixture

@@ -40,7 +40,7 @@ def level_presets(volume) -> List[Tuple[str, float, Tuple[float, float, float], 
     """Named isovalues for a scalar volume: CT tissue boundaries, else histogram valleys."""
     if looks_like_ct(volume):
         return list(CT_PRESETS)
-    from ..core.io.describe import histogram
+    from ...core.io.describe import histogram
 
     data = np.asarray(volume.data)
     sample = data.ravel()[:: max(1, data.size // 2_000_000)]

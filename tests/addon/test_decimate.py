@@ -16,7 +16,7 @@ from anatomesh.core.geometry.topology import topology
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.bridge"], sys.modules[name + ".addon.decimate_ui"]
+    return sys.modules[name + ".addon.bridge"], sys.modules[name + ".addon.decimation"]
 
 
 @pytest.fixture

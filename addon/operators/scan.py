@@ -1,0 +1,187 @@
+"""Scan operators: read a scan (Import), extract its surfaces (Extract), edit the label and
+isovalue lists."""
+from __future__ import annotations
+
+import os
+import time
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
+
+from .. import live
+from ..common import ProgressReporter, abspath, guarded, load_volume
+from ..scan import chosen_labels, chosen_levels, extract_to_scene, fill_lists, frame_viewports
+from ..ui import props
+
+
+# ---------------------------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------------------------
+
+
+# ---------------------------------------------------------------------------------------------
+# operators
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
+    """Read a scan or label map (NIfTI, NRRD, DICOM folder) and list its labels or isovalues"""
+
+    bl_idname = "anatomesh.import_scan"
+    bl_label = "Import Scan (Anatomesh)"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filter_glob: StringProperty(default="*.nii;*.nii.gz;*.gz;*.nrrd;*.nhdr;*.dcm;*.ima;*", options={"HIDDEN"})
+    filepath: StringProperty(name="File", subtype="FILE_PATH",
+                             description="NIfTI/NRRD file, a DICOM folder or one file in it")
+    series: StringProperty(name="Series", description="DICOM series UID or number, when several")
+    label_table: StringProperty(name="Label table", subtype="FILE_PATH",
+                                description="Label names/colours file (optional; sidecars are found)")
+    space: EnumProperty(name="Space", items=props.SPACE_ITEMS, default="RAS")
+    extract: BoolProperty(name="Extract now", default=True,
+                          description="Create the surfaces of every label (or the default isovalues) now")
+    render_method: EnumProperty(name="Transparency", items=props.RENDER_METHOD_ITEMS, default="DITHERED")
+
+    @guarded
+    def execute(self, context):
+        settings = context.scene.anatomesh
+        t0 = time.perf_counter()
+        with ProgressReporter(context, "reading") as progress:
+            vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress)
+        settings.filepath = self.filepath
+        settings.series = self.series
+        settings.label_table = self.label_table
+        settings.space = self.space
+        fill_lists(settings, vol)
+        for w in vol.warnings:
+            self.report({"WARNING"}, w)
+        if not self.extract:
+            n = len(settings.labels) if vol.is_label_map else len(settings.levels)
+            what = "labels" if vol.is_label_map else "isovalue presets"
+            self.report({"INFO"}, f"Read {os.path.basename(self.filepath)}: {n} {what}")
+            return {"FINISHED"}
+        with ProgressReporter(context, "extracting") as progress:
+            coll = extract_to_scene(context, vol, labels=chosen_labels(settings, vol, ""),
+                                    levels=chosen_levels(settings, ""), render_method=self.render_method,
+                                    progress=progress)
+        return _finish_extraction(self, context, coll, t0)
+
+
+def _finish_extraction(op, context, coll, t0: float):
+    """Frame the new surfaces, pass the reader's warnings on, report count and time."""
+    frame_viewports(context, coll)
+    for w in coll.get("anatomesh_warnings", []):
+        op.report({"WARNING"}, w)
+    op.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' ({time.perf_counter() - t0:.1f} s)")
+    return {"FINISHED"}
+
+
+class ANATOMESH_OT_extract(bpy.types.Operator):
+    """Extract the chosen labels (or isovalues) of the scan as surface objects in a new collection"""
+
+    bl_idname = "anatomesh.extract"
+    bl_label = "Extract Surfaces"
+    bl_options = {"REGISTER", "UNDO"}
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH",
+                             description="Scan to read (default: the one in the Import panel)")
+    series: StringProperty(name="Series")
+    label_table: StringProperty(name="Label table", subtype="FILE_PATH")
+    space: EnumProperty(name="Space", items=(("SETTINGS", "As set", "The Import panel's space"),)
+                        + props.SPACE_ITEMS, default="SETTINGS")
+    labels: StringProperty(name="Labels", description="'' = ticked rows of the list, 'all', or "
+                                                      "values/names separated by commas")
+    levels: StringProperty(name="Levels", description="'' = ticked isovalues, or numbers separated "
+                                                      "by commas (scalar scans)")
+    smooth_method: EnumProperty(name="Smoothing", items=props.SMOOTH_ITEMS, default="TAUBIN")
+    smooth_iterations: IntProperty(name="Iterations", default=-1, min=-1, max=1000,
+                                   description="-1: the Smooth panel's default")
+    smooth_strength: FloatProperty(name="Strength", default=-1.0, min=-1.0, max=1.0)
+    smooth_max_deviation: FloatProperty(name="Max deviation", default=-1.0, min=-1.0, unit="LENGTH")
+    keep_in_cell: EnumProperty(name="Stay in voxel", items=(("SETTINGS", "As set", ""), ("YES", "Yes", ""),
+                                                           ("NO", "No", "")), default="SETTINGS")
+
+    @guarded
+    def execute(self, context):
+        settings = context.scene.anatomesh
+        path = self.filepath or settings.filepath
+        if not path:
+            from ...core.model.errors import AnatomeshError
+
+            raise AnatomeshError("no scan chosen: set the file in the Import panel or pass filepath=")
+        space = settings.space if self.space == "SETTINGS" else self.space
+        series = self.series or (settings.series if not self.filepath else "")
+        table = self.label_table or (settings.label_table if not self.filepath else "")
+        t0 = time.perf_counter()
+        with ProgressReporter(context, "extracting") as progress:
+            vol = load_volume(path, series, table, space, progress=None)
+            if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
+                settings.filepath, settings.series, settings.label_table = self.filepath, series, table
+                fill_lists(settings, vol)
+            elif (vol.is_label_map and not len(settings.labels)) or (
+                    not vol.is_label_map and not len(settings.levels)):
+                fill_lists(settings, vol)
+            coll = extract_to_scene(
+                context, vol, labels=chosen_labels(settings, vol, self.labels) if vol.is_label_map else (),
+                levels=chosen_levels(settings, self.levels) if not vol.is_label_map else (),
+                render_method=settings.render_method, progress=progress)
+        iters = settings.smooth_iterations if self.smooth_iterations < 0 else self.smooth_iterations
+        strength = settings.smooth_strength if self.smooth_strength < 0 else self.smooth_strength
+        maxdev = settings.smooth_max_deviation if self.smooth_max_deviation < 0 else self.smooth_max_deviation
+        method = self.smooth_method if self.properties.is_property_set("smooth_method") else settings.smooth_method
+        in_cell = settings.keep_in_cell if self.keep_in_cell == "SETTINGS" else self.keep_in_cell == "YES"
+        live.set_scan_settings(coll, smooth_method=method, smooth_iterations=iters, smooth_strength=strength,
+                               smooth_max_deviation=maxdev, keep_in_cell=in_cell)
+        if iters > 0 and method != "NONE":
+            with ProgressReporter(context, "smoothing"):
+                live.smooth_collection(coll, method, iters, strength, maxdev, in_cell)
+        return _finish_extraction(self, context, coll, t0)
+
+
+class ANATOMESH_OT_labels_select(bpy.types.Operator):
+    """Tick or untick every label (or isovalue) in the list"""
+
+    bl_idname = "anatomesh.labels_select"
+    bl_label = "Select Labels"
+    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
+
+    action: EnumProperty(items=(("ALL", "All", ""), ("NONE", "None", ""), ("INVERT", "Invert", "")))
+
+    def execute(self, context):
+        settings = context.scene.anatomesh
+        rows = settings.labels if settings.kind == "LABELS" else settings.levels
+        for r in rows:
+            r.include = {"ALL": True, "NONE": False}.get(self.action, not r.include)
+        return {"FINISHED"}
+
+
+class ANATOMESH_OT_level_add(bpy.types.Operator):
+    """Add an isovalue to the list"""
+
+    bl_idname = "anatomesh.level_add"
+    bl_label = "Add Isovalue"
+    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
+
+    value: FloatProperty(name="Isovalue", default=0.0)
+
+    def execute(self, context):
+        settings = context.scene.anatomesh
+        item = settings.levels.add()
+        item.value = self.value
+        item.name = f"level {self.value:g}"
+        settings.level_index = len(settings.levels) - 1
+        return {"FINISHED"}
+
+
+class ANATOMESH_OT_level_remove(bpy.types.Operator):
+    """Remove the active isovalue from the list"""
+
+    bl_idname = "anatomesh.level_remove"
+    bl_label = "Remove Isovalue"
+    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
+
+    def execute(self, context):
+        settings = context.scene.anatomesh
+        if 0 <= settings.level_index < len(settings.levels):
+            settings.levels.remove(settings.level_index)
+            settings.level_index = max(0, settings.level_index - 1)
+        return {"FINISHED"}

@@ -1,0 +1,1 @@
+"""The sidebar tab: property groups (settings), panels and lists, isovalue presets."""
