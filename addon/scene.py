@@ -10,8 +10,8 @@
   the object's ``anatomesh_alpha`` property by an Attribute node, so it can be changed per object,
   keyed or driven without touching the material. An optional view-dependent ("oriented")
   transparency makes surfaces more opaque toward their silhouettes, so nested organs stay readable
-  (Stalling et al. 1999, as presented in the seed chapter §6.4.3, Fig. 6.16; a variation of Kay &
-  Greenberg 1979): the Layer Weight node's *Facing* output (0 facing the viewer, 1 at grazing
+  (transparency modulated by orientation, Stalling et al. 1999 (Zuse Institute Berlin); a
+  variation of Kay & Greenberg 1979, "Transparency for computer synthesized images"): the Layer Weight node's *Facing* output (0 facing the viewer, 1 at grazing
   angles) mixes from the object's opacity up to the edge opacity.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Levels of detail from one decimation run: a progressive mesh (seed §6.7.1).
+"""Levels of detail from one decimation run: a progressive mesh.
 
 Hoppe 1996 ("Progressive meshes", SIGGRAPH) stores a mesh as a coarse base mesh ``M0`` plus the
 sequence of vertex splits that refine it back to the full mesh ``Mn``; every prefix of the

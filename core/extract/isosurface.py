@@ -102,7 +102,7 @@ def isosurfaces(volume, levels: Sequence[float], affine: Optional[np.ndarray] = 
 
     Same parameters as :func:`isosurface`, with ``levels`` a sequence of isovalues. The only pass
     over the whole volume classifies each row against every level while the row is in cache
-    (seed §6.4.3: visit each cell once for all isosurfaces); the later passes touch only the bits
+    (each cell visited once for all isosurfaces); the later passes touch only the bits
     and the voxels next to crossed edges.
     """
     data, aff, out_space = _resolve_input(volume, affine, space)

@@ -1,8 +1,8 @@
 """The marching-cubes case table, generated from a fixed face rule (not typed in).
 
 Why generate it: the classic 15-class table of Lorensen and Cline (1987) is inconsistent on
-ambiguous faces — two cells sharing a face may cut it differently and leave holes (seed §6.3.3,
-Dürst 1988). Here every case is built from the same rule applied to each cube face, so both
+ambiguous faces — two cells sharing a face may cut it differently and leave holes (Dürst 1988,
+"Letters: additional reference to marching cubes"). Here every case is built from the same rule applied to each cube face, so both
 cells that share a face cut it with the *same* segments and the surface is closed and 2-manifold
 wherever it does not leave the grid (the idea behind VTK's full 256-case table, Schroeder et al.
 2001; the face rule is a fixed "separate the above corners" choice, like Nielson and Hamann's

@@ -2,7 +2,7 @@
 
 Smoothing visits every vertex's neighbours once per iteration; a generic half-edge structure
 costs too many indirections for that. Following Mönch et al. 2012 ("Interactive mesh smoothing
-for medical applications", Computer Graphics Forum 32(8); seed §6.5.3), neighbours are stored as
+for medical applications", Computer Graphics Forum 32(8)), neighbours are stored as
 one flat index array plus per-vertex offsets: the neighbours of vertex ``i`` are
 ``indices[offsets[i]:offsets[i + 1]]``. The structure is built once per mesh (numba, ~0.1 s for a
 million triangles) and reused across iterations and parameter changes: :func:`structure` caches

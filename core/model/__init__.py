@@ -1,1 +1,4 @@
-"""TODO"""
+"""The data every stage shares: :class:`~.volume.Volume` (voxels + affine + space + label table),
+:class:`~.mesh.Mesh` (one surface; the array validator, normals, welding), :class:`~.surfaceset.SurfaceSet`
+(many surfaces with shared seams), label tables and colours (:mod:`.labels`), the one user-facing
+error (:mod:`.errors`) and progress callbacks (:mod:`.progress`). Imports nothing else of core."""

@@ -5,7 +5,7 @@ A :class:`Mesh` is an indexed face set: shared vertices ``(N, 3) float32`` in mm
 here are pure numpy: edge lists are sorted once with ``np.unique``-style keys, which is fast enough
 for a few million triangles and easy to read.
 
-Topology (seed §6.2.1): for a closed 2-manifold with ``C`` components, Euler characteristic
+Topology: for a closed 2-manifold with ``C`` components, Euler characteristic
 ``χ = V − E + F`` and genus ``g = (2C − χ) / 2`` (a sphere has χ = 2, g = 0; a torus χ = 0, g = 1).
 """
 from __future__ import annotations

@@ -7,6 +7,7 @@ import pytest
 from helpers.meshes import box
 
 from anatomesh.app.cli import main as cli_main
+from anatomesh.core.export.threemf import write_3mf
 from anatomesh.core.export.mesh_files import write_obj, write_ply, write_stl
 from anatomesh.core.io.mesh_files import read_mesh, split_nonmanifold
 from anatomesh.core.model.mesh import Mesh
@@ -190,7 +191,6 @@ def test_split_nonmanifold_separates_cubes_touching_along_an_edge_and_at_a_corne
 
 
 def test_3mf_parts_are_checked_together(capsys, tmp_path):
-    write_3mf = pytest.importorskip("anatomesh.core.export.threemf").write_3mf
     a, b = box((0, 0, 0), (6, 6, 6), 4), box((0, 0, 6.2), (6, 6, 12), 4)
     path = tmp_path / "pair.3mf"
     write_3mf([Mesh(*a, name="lower"), Mesh(*b, name="upper")], path)

@@ -64,3 +64,13 @@ def box(lo, hi, n=4):
     f[flip] = f[flip][:, ::-1]
     u, inv = np.unique(np.round(v, 9), axis=0, return_inverse=True)
     return u, inv.ravel()[f].astype(np.int32)
+
+
+def tiled_spheres(copies=13, subdivisions=6, radius=10.0):
+    """``copies`` icospheres side by side (13 x 81,920 = 1,064,960 triangles by default): a
+    million-triangle mesh with a known size, for file-size tests and write benchmarks."""
+    v, f = icosphere(subdivisions, radius)
+    k = np.arange(copies)
+    vv = (v[None] + np.c_[k * 25.0, k * -3.5, k * 0.125][:, None]).reshape(-1, 3)
+    ff = (f[None] + (k * len(v))[:, None, None]).reshape(-1, 3)
+    return vv, ff.astype(np.int32)

@@ -14,6 +14,8 @@ from conftest import SAMPLE
 from helpers.meshes import box
 
 from anatomesh.app.cli import main as cli_main
+from anatomesh.core.export.threemf import write_3mf
+from anatomesh.core.io.mesh_files import read_mesh
 from anatomesh.core.export.mesh_files import write_stl
 from anatomesh.core.model.mesh import Mesh
 
@@ -126,14 +128,9 @@ def test_prusa_slicer_slices_our_stl_to_gcode(meshed, tmp_path):
 
 @need_prusa
 def test_prusa_slicer_slices_our_3mf(meshed, tmp_path):
-    mod = pytest.importorskip("anatomesh.core.export.threemf", reason="3MF export not written yet")
-    if not hasattr(mod, "write_3mf"):
-        pytest.skip("anatomesh.core.export.threemf has no write_3mf yet")
-    from anatomesh.core.io.mesh_files import read_mesh
-
     meshes = [read_mesh(p) for p in meshed[:3]]
     path = tmp_path / "parts.3mf"
-    mod.write_3mf(meshes, path)
+    write_3mf(meshes, path)
     res = subprocess.run([PRUSA, "--info", str(path)], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr[-2000:]
     assert "manifold = yes" in res.stdout and not re.search("|".join(PRUSA_REPAIRS), res.stdout)
