@@ -436,6 +436,21 @@ def emit_triangles(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_t
                         out_f, np.int64(kz))
 
 
+@_inline
+def _write_triangles(flat, out, end, ids, tri_edges, c, nk):
+    """Write case ``c``'s ``nk`` corner entries (vertex ids of its edges) at ``flat[out:]``;
+    returns the next position. With room for the largest case (15) a fixed, unrolled copy; the
+    slab's last cells write exactly ``nk`` (the next slab's entries are not ours)."""
+    uc = np.uint64(c)  # unsigned indices: no negative-index wrap-around code
+    if out + 15 <= end:
+        for k in range(15):
+            flat[np.uint64(out + k)] = ids[np.uint64(tri_edges[uc, np.uint64(k)])]
+    else:
+        for k in range(nk):
+            flat[np.uint64(out + k)] = ids[np.uint64(tri_edges[uc, np.uint64(k)])]
+    return out + nk
+
+
 @_serial
 def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_tri, row0, row1,
                     out, out_end, out_f, kz):
@@ -502,15 +517,7 @@ def _triangles_slab(bits, nx_virtual, tri_count, tri_edges, n_xe, n_ye, n_ze, n_
                 ids[9] = a0 + _bit(zd0, b)
                 ids[10] = a1
                 ids[11] = a1 + _bit(zd1, b)
-                nk = 3 * tri_count[c]
-                uc = np.uint64(c)  # unsigned indices: no negative-index wrap-around code
-                if out + 15 <= end:  # room for the largest case: a fixed, unrolled copy
-                    for k in range(15):
-                        flat[np.uint64(out + k)] = ids[np.uint64(tri_edges[uc, np.uint64(k)])]
-                else:  # the slab's last cells: exactly nk entries (the next slab's are not ours)
-                    for k in range(nk):
-                        flat[np.uint64(out + k)] = ids[np.uint64(tri_edges[uc, np.uint64(k)])]
-                out += nk
+                out = _write_triangles(flat, out, end, ids, tri_edges, c, 3 * tri_count[c])
             x00 += _pc(xd00)
             x10 += _pc(xd10)
             x01 += _pc(xd01)

@@ -50,7 +50,6 @@ SeriesInstanceUID.
 """
 from __future__ import annotations
 
-import math
 import os
 from collections import Counter, defaultdict
 from dataclasses import dataclass, field
@@ -60,39 +59,19 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 import pydicom
 from pydicom import uid as _uid
-from pydicom.multival import MultiValue
-from pydicom.pixels import get_decoder, pixel_array
 
 from ..model.errors import AnatomeshError
 from ..model.progress import Progress, report, sub
-from ..model.volume import Volume, check_fits_in_memory
+from ..model.volume import Volume
+from .dicom_geometry import series_geometry
+from .dicom_pixels import read_pixels, to_volume_layout, transfer_syntax
+from .dicom_values import file_names, first_float, float_or, int_or, short_error, text_of
 
 PathLike = Union[str, os.PathLike]
 
 #: file names that claim to be DICOM: when such a file cannot be read it is an error, not a skip
 DICOM_SUFFIXES = (".dcm", ".dicom", ".ima")
-GAP_FACTOR = 1.5            # a step above this times the median step is a gap (missing slices)
-UNIFORM_TOLERANCE = 0.01    # relative spread of the slice steps tolerated without a warning
-DUPLICATE_MM = 0.01         # two slices closer than this along the normal share a position
-ORIENTATION_TOLERANCE = 1e-4  # direction-cosine difference tolerated between slices
-TILT_TOLERANCE_DEG = 0.01   # shear below this is rounding; the affine is then orthogonal
-LINE_TOLERANCE_PX = 0.1     # in-plane scatter of slice origins tolerated, in pixels
 
-# transfer syntax → the pip package(s) whose pydicom plug-in decodes it
-_CODEC_PACKAGES = {
-    _uid.JPEGBaseline8Bit: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEGExtended12Bit: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEGLossless: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEGLosslessSV1: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEGLSLossless: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEGLSNearLossless: "pylibjpeg pylibjpeg-libjpeg",
-    _uid.JPEG2000Lossless: "pylibjpeg pylibjpeg-openjpeg",
-    _uid.JPEG2000: "pylibjpeg pylibjpeg-openjpeg",
-    _uid.HTJ2KLossless: "pylibjpeg pylibjpeg-openjpeg",
-    _uid.HTJ2KLosslessRPCL: "pylibjpeg pylibjpeg-openjpeg",
-    _uid.HTJ2K: "pylibjpeg pylibjpeg-openjpeg",
-    _uid.RLELossless: "pylibjpeg pylibjpeg-rle",
-}
 
 
 @dataclass
@@ -157,13 +136,13 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
     """
     scan = _scan(path_or_paths, sub(progress, 0.0, 0.3))
     info, headers = _choose(scan, series)
-    order, affine, step, geo_warnings = _geometry(info.files, headers, scan.source)
+    order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
     files = [info.files[i] for i in order]
     headers = [headers[i] for i in order]
-    stack = _read_pixels(files, headers, scan.source, sub(progress, 0.3, 0.95))
-    slope = np.array([_float(h, "RescaleSlope", 1.0) for h in headers])
-    intercept = np.array([_float(h, "RescaleIntercept", 0.0) for h in headers])
-    data = _to_volume_layout(stack, slope, intercept)
+    stack = read_pixels(files, headers, scan.source, sub(progress, 0.3, 0.95))
+    slope = np.array([float_or(h, "RescaleSlope", 1.0) for h in headers])
+    intercept = np.array([float_or(h, "RescaleIntercept", 0.0) for h in headers])
+    data = to_volume_layout(stack, slope, intercept)
     del stack
     report(progress, 1.0, "DICOM series read")
     meta = _meta(info, headers, scan.source, step, slope, intercept)
@@ -195,7 +174,7 @@ def _scan(path_or_paths, progress) -> _Scan:
         else:
             groups[_series_key(ds)].append((path, ds))
         report(progress, (n + 1) / len(files), f"reading DICOM headers {n + 1}/{len(files)}")
-    notes = [f"skipped {len(ps)} {kind}: {_names(ps, source)}" for kind, ps in skipped.items()]
+    notes = [f"skipped {len(ps)} {kind}: {file_names(ps, source)}" for kind, ps in skipped.items()]
     if not groups:
         found = "; ".join(f"{len(ps)} {kind}" for kind, ps in skipped.items())
         raise AnatomeshError(f"no DICOM image series found among {len(files)} file(s) ({found}); "
@@ -270,7 +249,7 @@ def _read_header(path: Path):
         ds = pydicom.dcmread(path, stop_before_pixels=True, force=not marker)
     except Exception as err:  # pydicom raises many kinds on damaged input
         if marker or claims:
-            raise AnatomeshError(f"damaged DICOM file, its header cannot be read ({_short(err)}); "
+            raise AnatomeshError(f"damaged DICOM file, its header cannot be read ({short_error(err)}); "
                                  "copy it again or remove it", path) from None
         return None, "file(s) that are not DICOM"
     if not marker and not any(k in ds for k in ("SOPClassUID", "Modality", "Rows")):
@@ -295,7 +274,7 @@ def _object_kind(ds, path: Path) -> str:
             raise AnatomeshError(f"truncated or damaged {name} file: its header has no image "
                                  "size (Rows/Columns); copy it again or remove it", path)
         return f"non-image DICOM object(s) ({name})"
-    if _int(ds.get("NumberOfFrames"), 1) > 1:
+    if int_or(ds.get("NumberOfFrames"), 1) > 1:
         return f"multi-frame object(s) ({name}; only single-frame slices are supported)"
     if "ImagePositionPatient" not in ds or "ImageOrientationPatient" not in ds:
         return f"image(s) without a patient position ({name}), not part of a 3D volume"
@@ -315,16 +294,16 @@ def _series_key(ds):
     if uid:
         return uid
     # anonymised files may lack the UID: fall back on what a person would group by
-    return ("", _int(ds.get("SeriesNumber"), None), _str(ds, "SeriesDescription"),
-            _str(ds, "Modality"))
+    return ("", int_or(ds.get("SeriesNumber"), None), text_of(ds, "SeriesDescription"),
+            text_of(ds, "Modality"))
 
 
 def _series_info(members) -> SeriesInfo:
     ds = members[0][1]
-    rows, cols = Counter((_int(d.get("Rows"), 0), _int(d.get("Columns"), 0))
+    rows, cols = Counter((int_or(d.get("Rows"), 0), int_or(d.get("Columns"), 0))
                          for _, d in members).most_common(1)[0][0]
-    return SeriesInfo(uid=_str(ds, "SeriesInstanceUID"), number=_int(ds.get("SeriesNumber"), None),
-                      description=_str(ds, "SeriesDescription"), modality=_str(ds, "Modality"),
+    return SeriesInfo(uid=text_of(ds, "SeriesInstanceUID"), number=int_or(ds.get("SeriesNumber"), None),
+                      description=text_of(ds, "SeriesDescription"), modality=text_of(ds, "Modality"),
                       n_slices=len(members), rows=rows, cols=cols, files=[p for p, _ in members])
 
 
@@ -361,244 +340,23 @@ def _listing(found) -> str:
 
 
 # -- geometry -----------------------------------------------------------------------------------
-def _geometry(files: List[Path], headers: list, source: Path):
-    """Sort the slices and build the affine. Returns (order, affine, median step mm, warnings)."""
-    _check_alike(files, headers, source)
-    row, col, dx, dy, warnings = _in_plane_axes(files, headers, source)
-    normal = np.cross(row, col)
-    normal /= np.linalg.norm(normal)
-    if len(files) < 2:
-        raise AnatomeshError("the series has a single slice; a volume needs at least 2", files[0])
-    pos = np.array([_floats(d, "ImagePositionPatient", 3, p) for p, d in zip(files, headers)])
-    t = pos @ normal  # position along the normal
-    order = np.argsort(t, kind="stable")
-    t, pos = t[order], pos[order]
-    step, more = _slice_step(t, order, files, headers, source)
-    vector, tilt = _slice_vector(pos, t, step, normal, min(dx, dy), order, files, headers, source)
-    affine = np.eye(4)
-    affine[:3, 0] = row * dx
-    affine[:3, 1] = col * dy
-    affine[:3, 2] = vector
-    affine[:3, 3] = pos[0]
-    return order, affine, step, warnings + more + tilt
-
-
-def _check_alike(files, headers, source):
-    """Raise unless all slices have one image size and are greyscale."""
-    sizes = [(_int(d.get("Rows"), 0), _int(d.get("Columns"), 0)) for d in headers]
-    _same(files, sizes, "image sizes", lambda v: f"{v[1]}x{v[0]}", source)
-    samples = [_int(d.get("SamplesPerPixel"), 1) for d in headers]
-    _same(files, samples, "samples per pixel", str, source)
-    if samples[0] != 1:
-        raise AnatomeshError("colour (RGB) images cannot form a scalar volume; export the "
-                             "series as greyscale", files[0])
-
-
-def _in_plane_axes(files, headers, source):
-    """Unit row and column directions, column and row spacing (mm), warnings."""
-    iop = np.array([_floats(d, "ImageOrientationPatient", 6, p) for p, d in zip(files, headers)])
-    _same_numbers(files, iop, ORIENTATION_TOLERANCE, "orientations", source)
-    spacing = np.array([_floats(d, "PixelSpacing", 2, p) for p, d in zip(files, headers)])
-    _same_numbers(files, spacing, 1e-4 * spacing.max(), "pixel spacings", source)
-    dy, dx = spacing[0]  # PixelSpacing = (between rows, between columns)
-    if dx <= 0 or dy <= 0:
-        raise AnatomeshError(f"PixelSpacing {spacing[0].tolist()} is not positive", files[0])
-    row, col = iop[0, :3], iop[0, 3:]
-    if min(np.linalg.norm(row), np.linalg.norm(col)) < 1e-6:
-        raise AnatomeshError("ImageOrientationPatient has a zero vector", files[0])
-    row, col = row / np.linalg.norm(row), col / np.linalg.norm(col)
-    angle = math.degrees(math.acos(max(-1.0, min(1.0, float(row @ col)))))
-    warnings = []
-    if abs(angle - 90.0) > 0.06:
-        warnings.append(f"the image row and column directions are {angle:.2f}° apart, not 90°; "
-                        "the affine keeps them as given")
-    return row, col, float(dx), float(dy), warnings
-
-
-def _slice_step(t, order, files, headers, source):
-    """Median step along the normal (mm) after the duplicate and gap checks; warnings."""
-    steps = np.diff(t)
-    _check_duplicates(steps, t, order, files, headers, source)
-    step = float(np.median(steps))
-    _check_gaps(steps, step, t, order, files, source)
-    if steps.max() - steps.min() <= UNIFORM_TOLERANCE * step:
-        return step, []
-    drift = np.abs(t - (t[0] + step * np.arange(len(t)))).max()
-    return step, [f"slice spacing is not uniform: steps from {steps.min():.4g} to "
-                  f"{steps.max():.4g} mm; the volume uses the median {step:.4g} mm, so slices "
-                  f"may be placed up to {drift:.3g} mm off"]
-
-
-def _slice_vector(pos, t, step, normal, pixel, order, files, headers, source):
-    """The affine's third column: ``normal * step``, or sheared along the slice origins (tilt)."""
-    travel = (pos[-1] - pos[0]) / (t[-1] - t[0])  # origin displacement per mm along the normal
-    off = np.linalg.norm(pos - pos[0] - np.outer(t - t[0], travel), axis=1)
-    if off.max() > LINE_TOLERANCE_PX * pixel:
-        bad = int(np.argmax(off))
-        raise AnatomeshError(f"the slice origins do not lie on one line: "
-                             f"{_rel(files[order[bad]], source)} is {off[bad]:.3g} mm off; the "
-                             "files may belong to different acquisitions; pass the files of one",
-                             source)
-    tilt = math.degrees(math.atan(float(np.linalg.norm(travel - normal * (travel @ normal)))))
-    if tilt <= TILT_TOLERANCE_DEG:
-        return normal * step, []
-    gantry = _float(headers[order[0]], "GantryDetectorTilt", 0.0)
-    named = f", GantryDetectorTilt {gantry:g}°" if gantry else ""
-    return travel * step, [f"the slices are sheared by {tilt:.2f}° (gantry tilt{named}); the "
-                           "affine reproduces the sheared grid exactly, but tools that assume "
-                           "square voxels may need a resampled copy"]
-
-
-def _same_numbers(files, values: np.ndarray, tol: float, what: str, source):
-    """Raise when rows of ``values`` differ from the first by more than ``tol``."""
-    if np.all(np.abs(values - values[0]) <= tol):
-        return
-    keys = [tuple(np.round(v, 4).tolist()) for v in values]
-    _same(files, keys, what, lambda v: "[" + ", ".join(f"{x:g}" for x in v) + "]", source)
-
-
-def _same(files, keys: list, what: str, fmt, source):
-    """Raise when ``keys`` (one per slice) differ, listing each group with an example file."""
-    if len(set(keys)) == 1:
-        return
-    groups: Dict[object, List[Path]] = defaultdict(list)
-    for k, p in zip(keys, files):
-        groups[k].append(p)
-    parts = ", ".join(f"{len(ps)} with {fmt(k)} (e.g. {_rel(ps[0], source)})"
-                      for k, ps in sorted(groups.items(), key=lambda kv: -len(kv[1])))
-    raise AnatomeshError(f"mixed {what} within one series: {parts}; a volume needs one; pass "
-                         "only the files that belong together", source)
-
-
-def _check_duplicates(steps, t, order, files, headers, source):
-    dup = np.flatnonzero(steps < DUPLICATE_MM)
-    if not len(dup):
-        return
-    a, b = order[dup[0]], order[dup[0] + 1]
-    more = f" ({len(dup) - 1} more such pair(s))" if len(dup) > 1 else ""
-    same = _str(headers[a], "SOPInstanceUID") and \
-        _str(headers[a], "SOPInstanceUID") == _str(headers[b], "SOPInstanceUID")
-    why = "the same image twice (same SOPInstanceUID)" if same else \
-        "a duplicated file, or several acquisitions or time points in one series"
-    raise AnatomeshError(f"duplicate slice positions: {_rel(files[a], source)} and "
-                         f"{_rel(files[b], source)} are both at {t[dup[0]]:.4g} mm along the "
-                         f"slice normal{more}: {why}; remove the duplicates "
-                         "or pass the files of one acquisition", source)
-
-
-def _check_gaps(steps, step, t, order, files, source):
-    gaps = np.flatnonzero(steps > GAP_FACTOR * step)
-    if not len(gaps):
-        return
-    g = gaps[0]
-    missing = max(1, int(round(steps[g] / step)) - 1)
-    more = f"; {len(gaps) - 1} more gap(s)" if len(gaps) > 1 else ""
-    raise AnatomeshError(f"missing slice(s): the position jumps by {steps[g]:.4g} mm between "
-                         f"{_rel(files[order[g]], source)} ({t[g]:.4g} mm) and "
-                         f"{_rel(files[order[g + 1]], source)} ({t[g + 1]:.4g} mm) where the usual "
-                         f"step is {step:.4g} mm, about {missing} slice(s) missing{more}; copy "
-                         "the complete series again", source)
 
 
 # -- pass 2: pixels -------------------------------------------------------------------------------
-def _read_pixels(files: List[Path], headers: list, source: Path, progress) -> np.ndarray:
-    """Decode the sorted slices into a (K, rows, cols) stack of stored values."""
-    _check_decoders(files, headers, source)
-    n_k = len(files)
-    rows, cols = _int(headers[0].get("Rows"), 0), _int(headers[0].get("Columns"), 0)
-    itemsize = max(1, _int(headers[0].get("BitsAllocated"), 16) // 8)
-    # the stack of stored values plus the (at most float32) output
-    check_fits_in_memory((cols, rows, n_k), np.float32, "the DICOM series", source,
-                         factor=(itemsize + 4) / 4)
-    stack = None
-    for k, (path, ds) in enumerate(zip(files, headers)):
-        arr = _decode(path, ds)
-        if arr.shape != (rows, cols):
-            raise AnatomeshError(f"the pixel array has shape {arr.shape}, expected "
-                                 f"({rows}, {cols}): not a greyscale slice like the others", path)
-        if stack is None:
-            stack = np.empty((n_k, rows, cols), arr.dtype)
-        elif arr.dtype != stack.dtype:
-            stack = stack.astype(np.result_type(stack.dtype, arr.dtype))
-        stack[k] = arr
-        report(progress, (k + 1) / n_k, f"reading slice {k + 1}/{n_k}")
-    return stack
-
-
-def _check_decoders(files, headers, source):
-    seen = set()
-    for path, ds in zip(files, headers):
-        ts = _transfer_syntax(ds)
-        if ts in seen:
-            continue
-        seen.add(ts)
-        try:
-            decoder = get_decoder(ts)
-        except NotImplementedError:
-            raise AnatomeshError(f"the pixel data is stored as {ts.name} ({ts}), which pydicom "
-                                 "cannot decode; convert the series to uncompressed DICOM first "
-                                 "(e.g. dcmtk's dcmdjpeg or gdcmconv --raw)", path) from None
-        if not decoder.is_available:
-            package = _CODEC_PACKAGES.get(ts, "pylibjpeg pylibjpeg-openjpeg pylibjpeg-libjpeg")
-            raise AnatomeshError(f"the pixel data is compressed as {ts.name} ({ts}) and no "
-                                 f"decoder for it is installed; install one with 'pip install "
-                                 f"{package}' in the Python that runs Anatomesh", source)
-
-
-def _decode(path: Path, ds) -> np.ndarray:
-    try:
-        if ds.file_meta.get("TransferSyntaxUID"):
-            return pixel_array(path)
-        full = pydicom.dcmread(path, force=True)  # bare data set without file meta
-        full.file_meta.TransferSyntaxUID = _transfer_syntax(full)
-        return full.pixel_array
-    except Exception as err:  # decoders raise many kinds on damaged data
-        raise AnatomeshError(f"cannot decode the pixel data ({_short(err)}): the file is "
-                             "truncated or damaged; copy it again", path) from None
-
-
-def _transfer_syntax(ds) -> _uid.UID:
-    value = ds.file_meta.get("TransferSyntaxUID") if getattr(ds, "file_meta", None) else None
-    if value:
-        return _uid.UID(str(value))
-    implicit, little = getattr(ds, "original_encoding", (True, True))
-    if implicit:
-        return _uid.ImplicitVRLittleEndian
-    return _uid.ExplicitVRLittleEndian if little else _uid.ExplicitVRBigEndian
-
-
-def _to_volume_layout(stack: np.ndarray, slope: np.ndarray, intercept: np.ndarray) -> np.ndarray:
-    """(K, R, C) stored values → C-contiguous (C, R, K) rescaled, int16 when exact, else float32."""
-    from ._dicom_kernels import transpose_rescale
-
-    n_k, rows, cols = stack.shape
-    integer = stack.dtype.kind in "iu" and all(float(v).is_integer()
-                                               for v in np.r_[slope, intercept])
-    if integer:
-        lo = stack.min(axis=(1, 2)).astype(np.float64)
-        hi = stack.max(axis=(1, 2)).astype(np.float64)
-        ends = np.r_[lo * slope + intercept, hi * slope + intercept]
-        integer = ends.min() >= -32768 and ends.max() <= 32767
-    out = np.empty((cols, rows, n_k), np.int16 if integer else np.float32)
-    if not stack.dtype.isnative:  # numba reads native byte order only
-        stack = stack.astype(stack.dtype.newbyteorder("="))
-    kind = np.int64 if integer else np.float64
-    transpose_rescale(np.ascontiguousarray(stack), slope.astype(kind), intercept.astype(kind), out)
-    return out
 
 
 # -- metadata and small helpers --------------------------------------------------------------------
 def _meta(info: SeriesInfo, headers: list, source: Path, step: float, slope, intercept) -> dict:
     first = headers[0]
-    modality = _str(first, "Modality")
-    units = "HU" if modality == "CT" else _str(first, "RescaleType") or _str(first, "Units")
+    modality = text_of(first, "Modality")
+    units = "HU" if modality == "CT" else text_of(first, "RescaleType") or text_of(first, "Units")
     if np.all(slope == slope[0]) and np.all(intercept == intercept[0]):
         rescale = {"slope": float(slope[0]), "intercept": float(intercept[0])}
     else:
         rescale = {"slope": "per slice", "intercept": "per slice",
                    "slope_range": [float(slope.min()), float(slope.max())],
                    "intercept_range": [float(intercept.min()), float(intercept.max())]}
-    ts = _transfer_syntax(first)
+    ts = transfer_syntax(first)
     return {
         "format": "dicom",
         "modality": modality,
@@ -609,73 +367,13 @@ def _meta(info: SeriesInfo, headers: list, source: Path, step: float, slope, int
         "rescale": rescale,
         "transfer_syntax": ts.name,
         "transfer_syntax_uid": str(ts),
-        "window_center": _first_float(first.get("WindowCenter")),
-        "window_width": _first_float(first.get("WindowWidth")),
+        "window_center": first_float(first.get("WindowCenter")),
+        "window_width": first_float(first.get("WindowWidth")),
         "source": str(source),
         "n_files": len(headers),
         "slice_spacing": step,
-        "slice_thickness": _float(first, "SliceThickness", None),
-        "manufacturer": _str(first, "Manufacturer"),
+        "slice_thickness": float_or(first, "SliceThickness", None),
+        "manufacturer": text_of(first, "Manufacturer"),
     }
 
 
-def _floats(ds, keyword: str, n: int, path: Path) -> List[float]:
-    value = ds.get(keyword)
-    try:
-        values = [float(v) for v in _as_list(value)]
-    except (TypeError, ValueError):
-        values = []
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise AnatomeshError(f"missing or malformed {keyword} ({value!r}); the slice cannot be "
-                             "placed in 3D", path)
-    return values
-
-
-def _as_list(value) -> list:
-    if value is None or value == "":
-        return []
-    return list(value) if isinstance(value, (list, tuple, MultiValue)) else [value]
-
-
-def _float(ds, keyword: str, default):
-    try:
-        value = ds.get(keyword)
-        return default if value is None or value == "" else float(value)
-    except (TypeError, ValueError):
-        return default
-
-
-def _first_float(value) -> Optional[float]:
-    try:
-        return float(_as_list(value)[0])
-    except (TypeError, ValueError, IndexError):
-        return None
-
-
-def _int(value, default):
-    try:
-        return default if value is None or value == "" else int(value)
-    except (TypeError, ValueError):
-        return default
-
-
-def _str(ds, keyword: str) -> str:
-    value = ds.get(keyword)
-    return "" if value is None else str(value).strip()
-
-
-def _short(err: Exception) -> str:
-    text = str(err).strip().splitlines()
-    return (text[0] if text else type(err).__name__)[:160]
-
-
-def _rel(path: Path, source: Path) -> str:
-    try:
-        return str(Path(path).relative_to(source))
-    except ValueError:
-        return str(path)
-
-
-def _names(paths: List[Path], source: Path, limit: int = 3) -> str:
-    shown = ", ".join(_rel(p, source) for p in paths[:limit])
-    return shown + (f" and {len(paths) - limit} more" if len(paths) > limit else "")
