@@ -2,7 +2,6 @@
 flat Lambert shading (both sides lit). Private: call :func:`~.snapshot.render`."""
 import math
 
-import numpy as np
 from numba import njit
 
 
