@@ -8,7 +8,7 @@
 3. Thickness reference: Blender's 3D Print Toolbox casts 6 random rays per face along the
    *stored* face normal (``mesh_helpers.bmesh_check_thick_object``) and keeps the shortest hit.
    Re-implemented here with the same grid ray caster, it is compared with
-   ``printcheck.wall_thickness`` on an exact 0.6 mm plate — as built and with its faces flipped
+   ``wall_thickness`` on an exact 0.6 mm plate — as built and with its faces flipped
    (normals the toolbox trusts, we do not) — and on the bone surface (faces under 0.8 mm).
 
 Each step prints wall time and process CPU time (all threads): on a machine shared with other
@@ -67,7 +67,7 @@ def timed(label, fn, *a, **k):
 
 def warm_up():
     """Compile (or load from cache) the numba kernels on a small case, outside the timings."""
-    from test_printcheck import box
+    from helpers.meshes import box
 
     v, f = box((0, 0, 0), (4, 4, 4), 3)
     w, g = box((0, 0, 4.3), (4, 4, 8), 3)
@@ -111,7 +111,7 @@ def _summary(rep):
 
 
 def plate_reference():
-    from test_printcheck import box
+    from helpers.meshes import box
 
     print("exact 0.6 mm plate (12 x 10 mm): toolbox rays vs wall_thickness")
     v, f = box((0, 0, 0), (12, 10, 0.6), 6)
