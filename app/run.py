@@ -317,7 +317,7 @@ def fix_volume(volume: Volume, recipe: Recipe):
     if wanted is not None:
         recipe.labels = wanted
     if recipe.thicken:
-        from ..core.printing.checks import resolve_profile
+        from ..core.printing.profiles import resolve_profile
 
         wall = resolve_profile(recipe.profile, recipe.min_wall)["min_wall"]
         volume, info = thicken_labels(volume, wall, labels=wanted)

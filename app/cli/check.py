@@ -20,7 +20,7 @@ import numpy as np
 from typing import Dict, List
 
 from ...core.model.errors import AnatomeshError
-from ...core.printing.checks import GAP_REPORT_MM
+from ...core.printing.profiles import GAP_REPORT_MM
 from ..check import read_parts
 
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
@@ -63,6 +63,7 @@ def _json_default(x):
 
 def cmd_check(args) -> int:
     from ...core.printing import checks as pc
+    from ...core.printing.profiles import resolve_profile
     from .main import TerminalProgress
 
     fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate))
@@ -71,7 +72,7 @@ def cmd_check(args) -> int:
     if args.out and not fixing:
         raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES "
                              "and/or --separate MM")
-    prof = pc.resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
+    prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     progress = TerminalProgress("checking")
     meshes = read_parts(args.path)
     fixes = []
