@@ -7,7 +7,7 @@ thickness, gaps) selectable as viewport colour.
 * The values come from core, on numpy arrays: mean curvature
   (:func:`anatomesh.core.geometry.measure.vertex_curvatures`, Meyer et al. 2003), distance to the
   unsmoothed surface (the ``anatomesh_rest`` attribute every surface object keeps, see
-  :mod:`.live`), wall thickness (:func:`anatomesh.core.printing.checks.wall_thickness`) and the gap to
+  :mod:`.live`), wall thickness (:func:`anatomesh.core.printing.thickness.wall_thickness`) and the gap to
   the nearest other part (:class:`anatomesh.core.geometry.spatial.TriangleGrid`), all in mm, in world
   coordinates.
 * ``anatomesh.paint`` paints the selected Anatomesh objects (or the active scan's) and switches
@@ -132,7 +132,7 @@ def distance_values(obj) -> np.ndarray:
 
 def thickness_values(obj, max_thickness: float = 5.0) -> np.ndarray:
     """Wall thickness per vertex, mm (capped at ``max_thickness``)."""
-    from ..core.printing.checks import wall_thickness
+    from ..core.printing.thickness import wall_thickness
 
     v, f = bridge.world_arrays(obj)
     return wall_thickness(v, f, max_thickness=max_thickness)

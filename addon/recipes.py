@@ -48,7 +48,7 @@ def recipe_from_scene(context):
 
 def _print_to_recipe(r, p) -> None:
     """The Print panel's settings, when its check was run: check on, profile, overridden limits."""
-    from ..core.printing.checks import PROFILES
+    from ..core.printing.profiles import PROFILES
 
     if p is None or not p.checked:
         return

@@ -41,7 +41,7 @@ from typing import Dict, List, Optional, Union
 
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
-from ..core.printing.checks import PROFILES as PRINTER_PROFILES
+from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept

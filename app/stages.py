@@ -33,7 +33,7 @@ from ..core.model.progress import Progress
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing import fixes as printfix
-from ..core.printing.checks import resolve_profile
+from ..core.printing.profiles import resolve_profile
 from ..core.smooth.driver import smooth_surfaces
 from .recipe import SMOOTH_NONE, Recipe
 

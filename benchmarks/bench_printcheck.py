@@ -8,7 +8,7 @@
 3. Thickness reference: Blender's 3D Print Toolbox casts 6 random rays per face along the
    *stored* face normal (``mesh_helpers.bmesh_check_thick_object``) and keeps the shortest hit.
    Re-implemented here with the same grid ray caster, it is compared with
-   ``printcheck.wall_thickness`` on an exact 0.6 mm plate — as built and with its faces flipped
+   ``wall_thickness`` on an exact 0.6 mm plate — as built and with its faces flipped
    (normals the toolbox trusts, we do not) — and on the bone surface (faces under 0.8 mm).
 
 Each step prints wall time and process CPU time (all threads): on a machine shared with other
@@ -29,7 +29,9 @@ REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
 sys.path.insert(0, str(REPO / "tests"))
 
-from anatomesh.core.printing import checks as pc
+from anatomesh.core.printing import checks as pc  # noqa: E402
+from anatomesh.core.printing.thickness import face_thickness, thin_regions, wall_thickness  # noqa: E402
+from anatomesh.core.model.mesh import Mesh  # noqa: E402
 from anatomesh.core.extract.isosurface import isosurface  # noqa: E402
 from anatomesh.core.extract.multilabel import label_surfaces  # noqa: E402
 from anatomesh.core.io.load import load  # noqa: E402
@@ -67,11 +69,11 @@ def timed(label, fn, *a, **k):
 
 def warm_up():
     """Compile (or load from cache) the numba kernels on a small case, outside the timings."""
-    from test_printcheck import box
+    from helpers.meshes import box
 
     v, f = box((0, 0, 0), (4, 4, 4), 3)
     w, g = box((0, 0, 4.3), (4, 4, 8), 3)
-    pc.check_parts([pc.Mesh(v, f, name="a"), pc.Mesh(w, g, name="b")])
+    pc.check_parts([Mesh(v, f, name="a"), Mesh(w, g, name="b")])
 
 
 def bench_label_map():
@@ -111,13 +113,13 @@ def _summary(rep):
 
 
 def plate_reference():
-    from test_printcheck import box
+    from helpers.meshes import box
 
     print("exact 0.6 mm plate (12 x 10 mm): toolbox rays vs wall_thickness")
     v, f = box((0, 0, 0), (12, 10, 0.6), 6)
     for name, ff in (("as built", f), ("faces flipped", f[:, ::-1].copy())):
         tb = toolbox_thickness(v, ff)
-        ours = pc.face_thickness(v, ff)
+        ours = face_thickness(v, ff)
         print(f"  {name}: toolbox min {np.min(tb):.3f} mm, faces < 0.8 mm "
               f"{np.mean(tb < 0.8):.0%}; ours min {np.nanmin(ours):.3f} mm, faces < 0.8 mm "
               f"{np.mean(ours < 0.8):.0%}")
@@ -131,10 +133,10 @@ def bench_large():
     print(f"  {m.n_faces:,} triangles, {m.n_vertices:,} vertices")
     g = timed("grid", TriangleGrid, v, f)
     timed("self_intersections", self_intersections, v, f)
-    wt = timed("wall_thickness (cap 5 mm)", pc.wall_thickness, v, f, g, 5.0)
-    timed("thin_regions", pc.thin_regions, v, f, wt, 0.8)
+    wt = timed("wall_thickness (cap 5 mm)", wall_thickness, v, f, g, 5.0)
+    timed("thin_regions", thin_regions, v, f, wt, 0.8)
     tb = timed("toolbox 6 rays/face", toolbox_thickness, v, f, g)
-    ft = pc.face_thickness(v, f, g, 5.0)
+    ft = face_thickness(v, f, g, 5.0)
     both = np.isfinite(tb) & np.isfinite(ft)
     print(f"  faces < 0.8 mm: toolbox {np.mean(tb < 0.8):.2%}, ours {np.mean(ft < 0.8):.2%}; "
           f"median |toolbox − ours| {np.median(np.abs(tb[both] - ft[both])):.3f} mm; "

@@ -2,7 +2,7 @@
 select/frame them, heat maps.
 
 * Settings (``Scene.anatomesh_print``): printer profile (FDM / resin, from
-  :data:`anatomesh.core.printing.checks.PROFILES`), minimum wall and minimum gap in mm (choosing a
+  :data:`anatomesh.core.printing.profiles.PROFILES`), minimum wall and minimum gap in mm (choosing a
   profile fills in its values; both stay editable), and whether to check the selection only.
 * ``anatomesh.print_check`` runs :func:`anatomesh.core.printing.checks.check_parts` on every Anatomesh
   surface object of the file (or the selected ones) together, in world coordinates (mm), and

@@ -193,7 +193,7 @@ class ANATOMESH_PG_decimate(PropertyGroup):
 
 
 def _profile_changed(self, context):
-    from ...core.printing.checks import PROFILES
+    from ...core.printing.profiles import PROFILES
 
     prof = PROFILES[self.profile.lower()]
     self.min_wall, self.min_gap = prof["min_wall"], prof["min_gap"]

@@ -18,7 +18,8 @@ from ...core.export.common import refuse_overwrite, unique_stems
 from ...core.export.mesh_files import write_stl
 from ...core.export.threemf import write_3mf
 from ...core.model.errors import AnatomeshError
-from ...core.printing.checks import GAP_REPORT_MM, check_parts, resolve_profile
+from ...core.printing.checks import check_parts
+from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
 from ..check import fix_parts, read_parts
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 

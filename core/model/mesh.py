@@ -153,6 +153,14 @@ def weld_ids(vertices: np.ndarray) -> np.ndarray:
     return ids
 
 
+def row_keys(rows: np.ndarray) -> np.ndarray:
+    """One comparable value per row of a (K, C) integer array: (K,) void keys, equal exactly when
+    the rows are equal (for ``np.unique``, ``np.isin``, sorting; no arithmetic, so no overflow).
+    The rows are read as int64."""
+    r = np.ascontiguousarray(rows, np.int64)
+    return r.view(np.dtype((np.void, r.itemsize * r.shape[1]))).ravel()
+
+
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals (N, 3) float64 (zero for unused vertices)."""
     v = np.asarray(vertices, np.float64)

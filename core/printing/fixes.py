@@ -1,4 +1,5 @@
-"""Fixes for 3D printing, each optional and each reporting what it did (see :mod:`.printcheck`).
+"""Fixes for 3D printing, each optional and each reporting what it did (the checks are in
+:mod:`.checks`).
 
 * :func:`remove_tiny` — drop shells enclosing less than a volume (mm³);
 * :func:`close_holes` — fill boundary loops of up to ``max_edges`` edges with a fan around the
@@ -6,12 +7,16 @@
   holes in segmentation surfaces are nearly planar);
 * :func:`separate_parts` / :func:`separate_meshes` — pull touching parts (of a
   :class:`SurfaceSet`, or meshes sharing vertex positions) apart by a clearance: every interface
-  vertex is duplicated per side and moved back along that side's normal by half the clearance,
-  so printed parts fit together after printing;
+  vertex is duplicated per side and moved back along that side's normal by half the clearance
+  (a mitred offset, solved by Kaczmarz 1937 projections, "Angenäherte Auflösung von Systemen
+  linearer Gleichungen"), so printed parts fit together after printing;
 * :func:`fuse_labels` / :func:`fuse_parts` — print chosen labels as one solid: merge the labels
   in the label map before extraction, or drop the interface faces between them in a SurfaceSet;
 * :func:`thicken_labels` — dilate a label where it is thinner than the minimum wall, in the
-  volume before extraction (a morphological closing of its thin parts by the wall's radius).
+  volume before extraction: thin voxels are those a morphological opening by a ball of the wall's
+  diameter removes (Serra 1982, "Image Analysis and Mathematical Morphology"), i.e. where no
+  inscribed ball that large fits (Hildebrand & Rüegsegger 1997, "A new method for the
+  model-independent assessment of thickness in three-dimensional images").
 
 Each returns ``(result, info)``; ``info`` is a JSON-ready dict of what was changed.
 """
@@ -22,8 +27,8 @@ from typing import Dict, Iterable, List, Optional, Sequence, Tuple
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.mesh import Mesh, check_arrays, compact, vertex_normals
-from .checks import tiny_shells
+from ..model.mesh import Mesh, check_arrays, compact, row_keys, vertex_normals, weld_ids
+from .solid import tiny_shells
 
 
 # ---------------------------------------------------------------------------------------------
@@ -154,9 +159,6 @@ def separate_meshes(meshes: Sequence[Mesh], clearance: float, chosen: Optional[I
     ``chosen`` (indices) limits the separation to interfaces between those parts.
 
     Returns (meshes, ``{"clearance_mm", "moved_vertices", "pairs": [[i, j], ...]}``)."""
-    from .checks import _row_keys
-    from ..model.mesh import weld_ids
-
     if not np.isfinite(clearance) or clearance <= 0:
         raise AnatomeshError(f"the clearance must be a positive number of mm, got {clearance}")
     shells = list(meshes)
@@ -176,7 +178,7 @@ def separate_meshes(meshes: Sequence[Mesh], clearance: float, chosen: Optional[I
     blocked[wid[~ok_label[owner]]] = True
     movable = (users > 1) & ~blocked
     # interface faces: the same three positions in two parts
-    fkeys = [_row_keys(np.sort(wid[offs[k]:offs[k + 1]][m.faces], axis=1)) for k, m in enumerate(shells)]
+    fkeys = [row_keys(np.sort(wid[offs[k]:offs[k + 1]][m.faces], axis=1)) for k, m in enumerate(shells)]
     allk = np.concatenate(fkeys) if fkeys else np.zeros(0)
     _, inv, cnt = np.unique(allk, return_inverse=True, return_counts=True)
     seam_all = cnt[inv.ravel()] > 1
@@ -209,7 +211,8 @@ def _offset_directions(v, faces, n0, iters: int = 8, cap: float = 3.0) -> np.nda
     around it (a mitred offset by 1: where two perpendicular interfaces meet, d = n1 + n2).
 
     Starts from the unit vertex normals ``n0`` and, per vertex, repeatedly adds the deficit of
-    its most violated face (Kaczmarz projections onto the half-spaces); |d| is capped at ``cap``."""
+    its most violated face (projections onto the half-spaces, Kaczmarz 1937, "Angenäherte
+    Auflösung von Systemen linearer Gleichungen"); |d| is capped at ``cap``."""
     f = np.asarray(faces, np.int64)
     fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
@@ -288,11 +291,14 @@ def thicken_labels(volume, min_wall: float, labels: Optional[Iterable[int]] = No
     """Grow each label where it is thinner than ``min_wall`` mm, in the label map before
     extraction.
 
-    A label's thin voxels are those its morphological opening by a ball of diameter ``min_wall``
-    (in mm, anisotropic spacing respected) removes, except pieces lying wholly within one voxel
-    of what the opening keeps (the convex corners and edges no ball reaches); they are dilated by a ball of radius
-    ``min_wall / 2`` plus half a voxel (so the digital ball has no one-voxel spikes) into
-    background voxels (label 0) only, so other labels keep their voxels.
+    A label's thin voxels are those its morphological opening (Serra 1982, "Image Analysis and
+    Mathematical Morphology") by a ball of diameter ``min_wall`` (in mm, anisotropic spacing
+    respected) removes — where no inscribed ball of that diameter fits (the thickness of
+    Hildebrand & Rüegsegger 1997, "A new method for the model-independent assessment of
+    thickness in three-dimensional images") — except pieces lying wholly within one voxel of
+    what the opening keeps (the convex corners and edges no ball reaches). They are dilated by a
+    ball of radius ``min_wall / 2`` plus half a voxel (so the digital ball has no one-voxel
+    spikes) into background voxels (label 0) only, so other labels keep their voxels.
 
     Returns (volume, ``{"labels": {value: added voxels}, "min_wall_mm"}``)."""
     from dataclasses import replace
@@ -333,14 +339,14 @@ def thicken_labels(volume, min_wall: float, labels: Optional[Iterable[int]] = No
 
 def remove_tiny_shells(mesh: Mesh, min_volume_mm3: float) -> Mesh:
     """A copy of ``mesh`` without the components enclosing less than ``min_volume_mm3``
-    (see :func:`tiny_shells`); unused vertices are dropped. ``meta["removed_shells"]`` lists the
+    (see :func:`anatomesh.core.printing.solid.tiny_shells`); unused vertices are dropped. ``meta["removed_shells"]`` lists the
     removed volumes (mm³)."""
     v, f = check_arrays(mesh.vertices, mesh.faces)
     shells = tiny_shells(v, f, min_volume_mm3)
     keep = np.ones(f.shape[0], bool)
     for s in shells:
         keep[s["faces"]] = False
-    nv, nf, nn, used = compact(mesh.vertices, f[keep], mesh.normals)
+    nv, nf, nn, _ = compact(mesh.vertices, f[keep], mesh.normals)
     meta = dict(mesh.meta)
     meta["removed_shells"] = [round(s["volume_mm3"], 6) for s in shells]
     return Mesh(nv, nf, nn, name=mesh.name, value=mesh.value, color=mesh.color, space=mesh.space,

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from anatomesh.core.printing.checks import PROFILES
+from anatomesh.core.printing.profiles import PROFILES
 
 from helpers.meshes import box
 

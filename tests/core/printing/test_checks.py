@@ -6,6 +6,10 @@ from conftest import shared
 from helpers.meshes import box, icosphere, torus
 
 from anatomesh.core.printing import checks as pc
+from anatomesh.core.printing.gaps import part_gaps
+from anatomesh.core.printing.profiles import PROFILES, resolve_profile
+from anatomesh.core.printing.solid import part_intersections, sliver_faces, tiny_shells
+from anatomesh.core.printing.thickness import thin_regions, wall_thickness
 from anatomesh.core.printing.fixes import remove_tiny_shells
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh
@@ -81,13 +85,13 @@ def test_grid_rejects_bad_input():
 # profiles and solid checks
 # ---------------------------------------------------------------------------------------------
 def test_profiles_and_overrides():
-    assert pc.PROFILES["fdm"]["min_wall"] == 0.8 and pc.PROFILES["resin"]["min_gap"] == 0.2
-    p = pc.resolve_profile("resin", min_wall=1.2)
+    assert PROFILES["fdm"]["min_wall"] == 0.8 and PROFILES["resin"]["min_gap"] == 0.2
+    p = resolve_profile("resin", min_wall=1.2)
     assert p["min_wall"] == 1.2 and p["min_gap"] == 0.2 and p["name"] == "resin"
     with pytest.raises(AnatomeshError, match="unknown printer profile"):
-        pc.resolve_profile("sls")
+        resolve_profile("sls")
     with pytest.raises(AnatomeshError):
-        pc.resolve_profile("fdm", min_gap=-1)
+        resolve_profile("fdm", min_gap=-1)
 
 
 def test_self_intersections_overlapping_boxes_vs_clean_shapes():
@@ -116,14 +120,14 @@ def test_part_intersections_spheres_and_seams():
     s1 = mesh_of(v, f, "s1")
     s2 = mesh_of(v + [7.0, 0.3, 0.1], f, "s2")
     s3 = mesh_of(v + [30.0, 0, 0], f, "s3")
-    inter = pc.part_intersections([s1, s2, s3])
+    inter = part_intersections([s1, s2, s3])
     assert [(d["a"], d["b"]) for d in inter] == [("s1", "s2")]
     assert abs(inter[0]["location"][0] - 3.5) < 0.5  # the lens between the spheres
     # two boxes sharing a face (same vertices on the seam): touching, not intersecting
     lower, upper = box((0, 0, 0), (4, 4, 4), 4), box((0, 0, 4), (4, 4, 6), 4)
     parts = [mesh_of(*lower, "lower"), mesh_of(*upper, "upper")]
-    assert pc.part_intersections(parts) == []
-    gaps = pc.part_gaps(parts)
+    assert part_intersections(parts) == []
+    gaps = part_gaps(parts)
     assert len(gaps) == 1 and gaps[0]["touching"] and gaps[0]["min_gap_mm"] == 0
     assert gaps[0]["seam_area_mm2"] == pytest.approx(16.0)
     assert gaps[0]["clearance_mm"] is None and not gaps[0]["fuses"]
@@ -134,14 +138,14 @@ def test_degenerate_slivers_and_tiny_shells():
     small = box((20, 0, 0), (20.5, 0.5, 0.5), 1)
     v2 = np.vstack([v, small[0]])
     f2 = np.vstack([f, small[1] + len(v)])
-    shells = pc.tiny_shells(v2, f2, 1.0)
+    shells = tiny_shells(v2, f2, 1.0)
     assert len(shells) == 1 and shells[0]["volume_mm3"] == pytest.approx(0.125)
     assert shells[0]["location"] == pytest.approx([20.25, 0.25, 0.25])
     # a sliver: one vertex of a face moved almost onto the opposite edge
     sv = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1e-3, 0]], float)
-    idx, ang = pc.sliver_faces(sv, np.array([[0, 1, 2]]))
+    idx, ang = sliver_faces(sv, np.array([[0, 1, 2]]))
     assert idx.tolist() == [0] and ang[0] < 0.3
-    assert pc.sliver_faces(v, f)[0].size == 0
+    assert sliver_faces(v, f)[0].size == 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -150,24 +154,24 @@ def test_degenerate_slivers_and_tiny_shells():
 @pytest.mark.parametrize("t", [0.6, 1.0, 2.0])
 def test_wall_thickness_exact_plates_and_rods(t):
     v, f = box((0, 0, 0), (12, 10, t), 6)
-    wt = pc.wall_thickness(v, f)
+    wt = wall_thickness(v, f)
     assert np.nanmin(wt) == pytest.approx(t, abs=1e-3)
     # independent of the normals: flipped, and half of the faces flipped
-    assert np.nanmin(pc.wall_thickness(v, f[:, ::-1])) == pytest.approx(t, abs=1e-3)
+    assert np.nanmin(wall_thickness(v, f[:, ::-1])) == pytest.approx(t, abs=1e-3)
     mixed = f.copy()
     mixed[::2] = mixed[::2, ::-1]
     assert not topology(v, mixed).oriented
-    assert np.nanmin(pc.wall_thickness(v, mixed)) == pytest.approx(t, abs=1e-3)
-    regions = pc.thin_regions(v, f, wt, t + 0.1)
+    assert np.nanmin(wall_thickness(v, mixed)) == pytest.approx(t, abs=1e-3)
+    regions = thin_regions(v, f, wt, t + 0.1)
     assert regions and sum(r["area_mm2"] for r in regions) >= 2 * 12 * 10 - 1e-6
     assert min(r["min_mm"] for r in regions) == pytest.approx(t, abs=1e-3)
-    assert pc.thin_regions(v, f, wt, t - 0.1) == []
+    assert thin_regions(v, f, wt, t - 0.1) == []
     # a square rod t x t x 20, rotated: its diameter everywhere
     rv, rf = box((0, 0, 0), (t, t, 20), 8)
     rv = rv @ rotation((1, 1, 0), 0.7).T + CENTRE
-    rt = pc.wall_thickness(rv, rf)
+    rt = wall_thickness(rv, rf)
     assert np.nanmin(rt) == pytest.approx(t, abs=1e-3)
-    reg = pc.thin_regions(rv, rf, rt, 1.5 * t)
+    reg = thin_regions(rv, rf, rt, 1.5 * t)
     assert len(reg) == 1 and reg[0]["min_mm"] == pytest.approx(t, abs=1e-3)
     # the four long sides (the caps' centres measure the rod's length)
     assert 4 * t * 20 - 1e-6 <= reg[0]["area_mm2"] <= 4 * t * 20 + 2 * t * t + 1e-6
@@ -184,15 +188,15 @@ def test_wall_thickness_voxel_phantoms_oblique_anisotropic():
     for t in (0.6, 1.0, 2.0):
         plate = np.minimum(np.minimum(t / 2 - np.abs(p[:, 2]), 5 - np.abs(p[:, 0])), 5 - np.abs(p[:, 1]))
         m = isosurface(plate.reshape(shape).astype(np.float32), 0.0, affine=a)
-        wt = pc.wall_thickness(m.vertices, m.faces)
-        reg = pc.thin_regions(m.vertices, m.faces, wt, t + 0.25)
+        wt = wall_thickness(m.vertices, m.faces)
+        reg = thin_regions(m.vertices, m.faces, wt, t + 0.25)
         big = reg[0]
         assert big["median_mm"] == pytest.approx(t, abs=tol)
         assert sum(r["area_mm2"] for r in reg) == pytest.approx(2 * 10 * 10, rel=0.15)
         rod = np.minimum(t / 2 - np.hypot(p[:, 0], p[:, 1]), 6 - np.abs(p[:, 2]))
         m = isosurface(rod.reshape(shape).astype(np.float32), 0.0, affine=a)
-        wt = pc.wall_thickness(m.vertices, m.faces)
-        reg = pc.thin_regions(m.vertices, m.faces, wt, t + 0.25)
+        wt = wall_thickness(m.vertices, m.faces)
+        reg = thin_regions(m.vertices, m.faces, wt, t + 0.25)
         assert len(reg) == 1 and reg[0]["median_mm"] == pytest.approx(t, abs=tol)
         along = (np.array(reg[0]["location"]) - CENTRE) @ local
         assert np.hypot(along[0], along[1]) < 0.2  # the region is the rod, centred on its axis
@@ -207,7 +211,7 @@ def test_gaps_exact_blocks():
              box((0, 0, 5.7), (5, 5, 9), 3), box((12, 1, 1), (14, 3, 3), 2),
              box((40, 0, 0), (41, 1, 1), 1)]
     meshes = [mesh_of(v @ rot.T + CENTRE, f, n) for (v, f), n in zip(parts, "ABCDE")]
-    gaps = {(g["a"], g["b"]): g for g in pc.part_gaps(meshes, min_gap=0.5)}
+    gaps = {(g["a"], g["b"]): g for g in part_gaps(meshes, min_gap=0.5)}
     assert gaps[("A", "B")]["min_gap_mm"] == pytest.approx(0.3, abs=1e-3)
     assert gaps[("A", "C")]["min_gap_mm"] == pytest.approx(0.7, abs=1e-3)
     assert gaps[("B", "D")]["min_gap_mm"] == pytest.approx(2.0, abs=1e-3)
@@ -236,8 +240,8 @@ def test_gaps_and_seams_from_a_label_map():
     a[:3, :3] = rotation((1, 1, 1), 0.3) @ np.diag(spacing)
     ss = label_surfaces(lab, affine=a)
     meshes = ss.shells()
-    assert pc.part_intersections(meshes) == []
-    gaps = {(g["ia"], g["ib"]): g for g in pc.part_gaps(meshes, min_gap=0.5)}
+    assert part_intersections(meshes) == []
+    gaps = {(g["ia"], g["ib"]): g for g in part_gaps(meshes, min_gap=0.5)}
     assert gaps[(0, 1)]["touching"] and gaps[(0, 1)]["min_gap_mm"] == 0
     assert gaps[(0, 1)]["seam_area_mm2"] == pytest.approx(8 * 7 * 0.7 * 1.1, rel=1e-5)
     assert gaps[(1, 2)]["min_gap_mm"] == pytest.approx(0.4, abs=1e-4) and gaps[(1, 2)]["fuses"]
@@ -324,7 +328,6 @@ def test_remove_tiny_shells():
 def test_thin_spots_of_one_or_two_vertices_are_not_regions():
     """On a coarse mesh one vertex stands for many mm²: a lone thin vertex or a thin edge (a
     crease where smoothed organs meet) is a spot, three linked thin vertices (a face) a region."""
-    from anatomesh.core.printing.checks import thin_regions
 
     v, f = icosphere(1, 10.0)  # 42 vertices: ~30 mm² each
     t = np.full(len(v), 5.0)

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 from helpers.meshes import box
 
-from anatomesh.core.printing import checks as pc
+from anatomesh.core.printing.gaps import part_gaps
+from anatomesh.core.printing.solid import part_intersections
+from anatomesh.core.printing.thickness import wall_thickness
 from anatomesh.core.printing import fixes as fx
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.extract.multilabel import label_surfaces
@@ -66,7 +68,7 @@ def test_close_holes_fills_small_loops_only():
 @pytest.mark.parametrize("clearance", [0.4, 1.0])
 def test_separate_parts_opens_every_seam_by_the_clearance(clearance):
     s = label_surfaces(blocks_volume())
-    before = pc.part_gaps(s.shells(), min_gap=0.5)
+    before = part_gaps(s.shells(), min_gap=0.5)
     assert {(g["a"], g["b"]) for g in before if g["touching"]} == {
         ("label_1", "label_2"), ("label_1", "label_3"), ("label_2", "label_3")}
     parts, info = fx.separate_parts(s, clearance)
@@ -78,7 +80,7 @@ def test_separate_parts_opens_every_seam_by_the_clearance(clearance):
     for p in parts:
         assert solid(p)
         assert self_intersections(p.vertices, p.faces).shape[0] == 0
-    gaps = pc.part_gaps(parts, min_gap=clearance)
+    gaps = part_gaps(parts, min_gap=clearance)
     assert len(gaps) == 3 and not any(g["touching"] for g in gaps)
     # the flat 1|2 interface opens by exactly the clearance; where 3 sits on 1 and 2 the other
     # part's surface runs on past the interface's rim, and the bevel there narrows the gap to
@@ -87,14 +89,14 @@ def test_separate_parts_opens_every_seam_by_the_clearance(clearance):
     assert gap[("label_1", "label_2")] == pytest.approx(clearance, abs=0.01)
     for g in gaps:
         assert g["min_gap_mm"] >= np.sqrt(2 / 3) * clearance - 0.01, g
-    assert not pc.part_intersections(parts)
+    assert not part_intersections(parts)
 
 
 def test_separate_parts_only_between_chosen_labels():
     s = label_surfaces(blocks_volume())
     parts, info = fx.separate_parts(s, 0.6, labels=[1, 2])
     assert info["pairs"] == [[1, 2]]
-    gaps = {(g["a"], g["b"]): g for g in pc.part_gaps(parts)}
+    gaps = {(g["a"], g["b"]): g for g in part_gaps(parts)}
     # 1 and 2 share no face any more; where label 3 (not chosen) meets both, the junction
     # line stays put, so they still meet along it
     g12 = gaps[("label_1", "label_2")]
@@ -135,7 +137,7 @@ def test_thicken_labels_brings_a_thin_plate_to_the_minimum_wall():
 
     def fin_wall(v):
         m = label_surfaces(v).shell(1)
-        t = pc.wall_thickness(m.vertices, m.faces, max_thickness=5.0)
+        t = wall_thickness(m.vertices, m.faces, max_thickness=5.0)
         on_fin = (m.vertices[:, 2] > 0.5 * 8) & (m.vertices[:, 2] < 0.5 * 17)  # fin, away from ends
         return np.nanmin(t[on_fin]), np.nanmedian(t[on_fin])
 
