@@ -200,7 +200,7 @@ def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.Scan
     pieces_v, pieces_f = [], []
     for m, value, name, color, shared in items:
         obj = scene.add_surface(coll, name, m.vertices, m.faces, object_props(volume, value, name),
-                                color, render_method, shared_index=shared)
+                                color, render_method, shared_index=shared, vertex_colors=m.vertex_colors)
         if shared is None:  # independent surfaces: stack them into one array set for smoothing
             shared = np.arange(offsets, offsets + m.n_vertices)
             pieces_v.append(m.vertices)

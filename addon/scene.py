@@ -38,6 +38,8 @@ OBJECT_PROPS = (
 )
 
 ORIENTED_GROUP = "Anatomesh Oriented Alpha"
+#: the colour attribute of per-vertex colours that came with a surface (distance, difference maps)
+COLOR_ATTRIBUTE = "anatomesh_color"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -78,17 +80,22 @@ def scan_name(path) -> str:
 # ---------------------------------------------------------------------------------------------
 def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarray, faces: np.ndarray,
                 props: Dict, color: Sequence[float] = (0.8, 0.8, 0.8), render_method: str = "DITHERED",
-                shared_index: Optional[np.ndarray] = None) -> bpy.types.Object:
+                shared_index: Optional[np.ndarray] = None,
+                vertex_colors: Optional[np.ndarray] = None) -> bpy.types.Object:
     """Create one surface object in ``collection``.
 
     ``vertices`` (N, 3) mm, ``faces`` (M, 3); ``props`` are written as custom properties (see
     :data:`OBJECT_PROPS`); the unsmoothed positions are kept as the ``anatomesh_rest`` attribute
     and, when given, each vertex's index in the shared surface set as ``anatomesh_vid``.
+    ``vertex_colors`` (N, 3|4) sRGB, optional: the colour attribute :data:`COLOR_ATTRIBUTE`
+    (active, shown when the viewport colours by attribute).
     """
     me = bridge.new_mesh(name, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
     if shared_index is not None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, shared_index, "int")
+    if vertex_colors is not None:
+        set_vertex_colors(me, vertex_colors)
     obj = bpy.data.objects.new(name, me)
     for key, val in props.items():
         obj[key] = val
@@ -100,6 +107,24 @@ def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarra
     me.materials.append(surface_material(name, color, render_method))
     collection.objects.link(obj)
     return obj
+
+
+def set_vertex_colors(me: bpy.types.Mesh, colors: np.ndarray, name: str = "") -> None:
+    """Per-vertex colours (N, 3|4) sRGB in [0, 1] as a linear FLOAT_COLOR point attribute
+    (``name``, default :data:`COLOR_ATTRIBUTE`), made the active and render colour attribute."""
+    name = name or COLOR_ATTRIBUTE
+    c = np.asarray(colors, np.float32)
+    rgba = np.ones((len(c), 4), np.float32)
+    rgba[:, :3] = srgb_to_linear(c[:, :3])
+    if c.shape[1] == 4:
+        rgba[:, 3] = c[:, 3]
+    attr = me.color_attributes.get(name)
+    if attr is not None:
+        me.color_attributes.remove(attr)
+    attr = me.color_attributes.new(name, "FLOAT_COLOR", "POINT")
+    attr.data.foreach_set("color", rgba.ravel())
+    me.color_attributes.active_color = attr
+    me.color_attributes.default_color_name = name
 
 
 def _property_ui(obj: bpy.types.Object) -> None:

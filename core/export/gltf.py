@@ -110,6 +110,10 @@ def write_glb(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         small = m.n_vertices < 65536
         attrs = {"POSITION": add(m.vertices, _FLOAT, "VEC3", _ARRAY_BUFFER, minmax=True),
                  "NORMAL": add(_unit_normals(m), _FLOAT, "VEC3", _ARRAY_BUFFER)}
+        if m.vertex_colors is not None:  # glTF's COLOR_0 is linear; it multiplies the base colour
+            c = m.vertex_colors
+            lin = np.concatenate([srgb_to_linear(c[:, :3]), c[:, 3:]], axis=1)
+            attrs["COLOR_0"] = add(lin, _FLOAT, "VEC4" if c.shape[1] == 4 else "VEC3", _ARRAY_BUFFER)
         idx = add(m.faces.ravel(), _UINT16 if small else _UINT32, "SCALAR", _ELEMENT_ARRAY_BUFFER)
         doc["meshes"].append({"name": m.name or f"surface_{k + 1}", "primitives": [
             {"attributes": attrs, "indices": idx, "material": k, "mode": 4}]})
@@ -152,7 +156,7 @@ def _unit_normals(m: Mesh) -> np.ndarray:
 
 def _material(m: Mesh, k: int) -> Dict:
     r, g, b, a = rgba(m.color)
-    lin = [float(x) for x in srgb_to_linear([r, g, b])]
+    lin = [float(x) for x in srgb_to_linear([r, g, b])] if m.vertex_colors is None else [1.0, 1.0, 1.0]
     mat = {"name": m.name or f"surface_{k + 1}",
            "pbrMetallicRoughness": {"baseColorFactor": lin + [a], "metallicFactor": 0.0,
                                     "roughnessFactor": 0.5}}
@@ -230,7 +234,7 @@ def _accessor(doc: Dict, binary: bytes, index: int) -> np.ndarray:
 
 def _node_mesh(doc: Dict, binary: bytes, node: Dict, space: str) -> Mesh:
     gm = doc["meshes"][node["mesh"]]
-    vs, fs, ns, n, color = [], [], [], 0, (0.8, 0.8, 0.8)
+    vs, fs, ns, cs, n, color = [], [], [], [], 0, (0.8, 0.8, 0.8)
     for k, prim in enumerate(gm["primitives"]):
         if prim.get("mode", 4) != 4:
             raise ValueError("only triangle primitives (mode 4) are supported")
@@ -241,14 +245,18 @@ def _node_mesh(doc: Dict, binary: bytes, node: Dict, space: str) -> Mesh:
         fs.append(f.reshape(-1, 3) + n)
         if "NORMAL" in prim["attributes"]:
             ns.append(_accessor(doc, binary, prim["attributes"]["NORMAL"]))
+        if "COLOR_0" in prim["attributes"]:
+            c = _accessor(doc, binary, prim["attributes"]["COLOR_0"]).astype(np.float64)
+            cs.append(np.concatenate([linear_to_srgb(c[:, :3]), c[:, 3:]], axis=1))
         n += len(v)
         if k == 0 and "material" in prim:
             color = _color(doc["materials"][prim["material"]])
     extras = node.get("extras") or {}
     normals = np.concatenate(ns) if len(ns) == len(vs) else None
+    colors = np.concatenate(cs) if len(cs) == len(vs) else None
     return Mesh(np.concatenate(vs), np.concatenate(fs), normals=normals,
                 name=node.get("name") or gm.get("name", ""), value=extras.get("anatomesh_value"),
-                color=color, space=str(extras.get("anatomesh_space", space)))
+                color=color, space=str(extras.get("anatomesh_space", space)), vertex_colors=colors)
 
 
 def _color(material: Dict):

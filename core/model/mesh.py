@@ -23,7 +23,9 @@ class Mesh:
     """One surface: vertices (N, 3) float32 mm, faces (M, 3) int32, optional per-vertex normals.
 
     ``value`` is the label value (label maps) or the isovalue (scalar scans); ``space`` is
-    ``"RAS"`` or ``"LPS"`` — the space the vertices are in.
+    ``"RAS"`` or ``"LPS"`` — the space the vertices are in. ``vertex_colors`` (N, 3) or (N, 4)
+    float32 sRGB in [0, 1], optional: a colour per vertex (a distance or difference map) that the
+    PLY and GLB writers and the Blender scene carry.
     """
 
     vertices: np.ndarray
@@ -34,12 +36,19 @@ class Mesh:
     color: Tuple[float, float, float] = (0.8, 0.8, 0.8)
     space: str = "RAS"
     meta: Dict = field(default_factory=dict)
+    vertex_colors: Optional[np.ndarray] = None
 
     def __post_init__(self):
         self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float32).reshape(-1, 3)
         self.faces = np.ascontiguousarray(self.faces, dtype=np.int32).reshape(-1, 3)
         if self.normals is not None:
             self.normals = np.ascontiguousarray(self.normals, dtype=np.float32).reshape(-1, 3)
+        if self.vertex_colors is not None:
+            c = np.ascontiguousarray(self.vertex_colors, dtype=np.float32)
+            if c.ndim != 2 or c.shape[0] != len(self.vertices) or c.shape[1] not in (3, 4):
+                raise AnatomeshError(f"vertex_colors must be ({len(self.vertices)}, 3 or 4) sRGB "
+                                     f"values in [0, 1], got shape {c.shape}")
+            self.vertex_colors = np.clip(c, 0.0, 1.0)
 
     @property
     def n_vertices(self) -> int:

@@ -153,3 +153,21 @@ def test_frame_camera_fits_every_corner(scn, empty_scene, space, elevation, azim
         assert 0.0 <= p.x <= 1.0 and 0.0 <= p.y <= 1.0 and p.z > 0
         edge = max(edge, abs(p.x - 0.5), abs(p.y - 0.5))
     assert edge > 0.45  # tight: some corner is near the frame's edge
+
+
+def test_vertex_colors_become_the_active_colour_attribute(addon, empty_scene):
+    import numpy as np
+    from importlib import import_module
+
+    scene = import_module(addon.__name__ + ".addon.scene")
+    v = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10]], np.float32)
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]], np.int32)
+    srgb = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0.5]], np.float32)
+    coll = scene.new_collection("painted")
+    obj = scene.add_surface(coll, "tet", v, f, {}, vertex_colors=srgb)
+    attr = obj.data.color_attributes.active_color
+    assert attr.name == scene.COLOR_ATTRIBUTE and attr.domain == "POINT"
+    got = np.zeros(16, np.float32)
+    attr.data.foreach_get("color", got)
+    lin = got.reshape(4, 4)
+    assert np.allclose(lin[:3, :3], np.eye(3)) and abs(lin[3, 0] - 0.214) < 0.01  # sRGB 0.5 -> linear

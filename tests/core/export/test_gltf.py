@@ -136,3 +136,17 @@ def test_not_a_glb(tmp_path):
     p.write_bytes(b"glTF\x01\x00\x00\x00" + b"\0" * 16)
     with pytest.raises(AnatomeshError, match="GLB 2.0"):
         read_glb(p)
+
+
+def test_vertex_colors_round_trip_linear_in_the_file(tmp_path):
+    v, f = icosphere(2, 5.0)
+    rgb = np.stack([np.linspace(0, 1, len(v)), np.full(len(v), 0.5), np.zeros(len(v))], 1)
+    p = write_glb([Mesh(v, f, name="painted", color=(0.2, 0.3, 0.4), vertex_colors=rgb)], tmp_path / "c.glb")
+    doc = json.loads(p.read_bytes()[20:20 + struct.unpack_from("<I", p.read_bytes(), 12)[0]])
+    prim = doc["meshes"][0]["primitives"][0]
+    assert "COLOR_0" in prim["attributes"]
+    # the vertex colours carry the colour: the material's base colour is white, not the label's
+    assert doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"][:3] == [1.0, 1.0, 1.0]
+    back = read_glb(p)[0]
+    np.testing.assert_allclose(back.vertex_colors, rgb, atol=1e-5)
+    assert read_glb(write_glb([Mesh(v, f)], tmp_path / "plain.glb"))[0].vertex_colors is None

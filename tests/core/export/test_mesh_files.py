@@ -2,7 +2,7 @@
 import numpy as np
 
 from anatomesh.core.export.mesh_files import write_mesh
-from anatomesh.core.io.mesh_files import read_stl
+from anatomesh.core.io.mesh_files import read_mesh, read_stl
 from anatomesh.core.model.mesh import Mesh
 from helpers.meshes import icosphere
 
@@ -41,3 +41,17 @@ def test_obj_text(tmp_path):
     assert lines[0] == "# anatomesh SPACE=LPS UNITS=mm"
     assert sum(1 for ln in lines if ln.startswith("v ")) == m.n_vertices
     assert sum(1 for ln in lines if ln.startswith("f ")) == m.n_faces
+
+
+def test_ply_vertex_colors_as_bytes(tmp_path):
+    v, f = icosphere(1, 5.0)
+    rgb = np.tile([[1.0, 0.5, 0.0]], (len(v), 1))
+    p = write_mesh(Mesh(v, f, vertex_colors=rgb), tmp_path / "c.ply")
+    data = p.read_bytes()
+    head = data[:data.index(b"end_header")].decode()
+    assert "property uchar red" in head and "property uchar blue" in head
+    body = data[data.index(b"end_header") + 11:]
+    rec = np.frombuffer(body[:len(v) * 15], dtype=[("p", "<f4", 3), ("c", "u1", 3)])
+    np.testing.assert_allclose(rec["p"], v, atol=1e-5)
+    assert np.all(rec["c"] == [255, 128, 0])
+    assert read_mesh(p).n_faces == len(f)  # our reader skips the colour properties
