@@ -14,59 +14,34 @@ within a triangle between samples — a fraction of an edge length.
 """
 from __future__ import annotations
 
-from typing import Dict, Optional, Tuple
+from typing import Dict, Tuple
 
 import numpy as np
 
 from . import _measure_kernels as _k
-from . import spatial as _spatial
 from ..model.errors import AnatomeshError
-from ..model.mesh import degenerate_faces, signed_volume, surface_area
+from ..model.mesh import check_arrays, degenerate_faces, signed_volume, surface_area
 from .topology import topology
-from .neighbors import check_faces, structure as _structure
-
-
-def _arrays(vertices, faces, what="mesh"):
-    v = np.asarray(vertices)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise AnatomeshError(f"{what}: vertices must be (N, 3) positions in mm, got shape {v.shape}")
-    v = np.ascontiguousarray(v, dtype=np.float64)
-    if not np.all(np.isfinite(v)):
-        raise AnatomeshError(f"{what}: vertices contain NaN or infinite coordinates")
-    return v, check_faces(faces, v.shape[0])
+from .neighbors import structure as _structure
+from .spatial import TriangleGrid
 
 
 # ---------------------------------------------------------------------------------------------
 # distances
 # ---------------------------------------------------------------------------------------------
-class TriangleGrid(_spatial.TriangleGrid):
-    """:class:`anatomesh.core.geometry.spatial.TriangleGrid` (one grid for every distance query in
-    Anatomesh) with the measuring interface: exact nearest-triangle distances.
-
-    ``cell`` is the grid's cell edge in mm (default: the spatial grid's own choice)."""
-
-    def __init__(self, vertices, faces, cell: Optional[float] = None):
-        v, f = _arrays(vertices, faces, "surface")
-        if f.shape[0] == 0:
-            raise AnatomeshError("cannot measure distances to a surface without triangles")
-        super().__init__(v, f, cell_size=cell)
-
-    def distance(self, points) -> np.ndarray:
-        """Exact distance (mm) from each point (P, 3) to the nearest triangle, (P,) float64."""
-        p = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
-        return self.closest(p)[0]
-
-
 def sample_points(vertices, faces) -> np.ndarray:
     """The vertices used by faces plus every face centroid, (P, 3) float64 mm."""
-    v, f = _arrays(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     used = np.unique(f)
     return np.concatenate([v[used], v[f].mean(axis=1)])
 
 
 def point_to_surface(points, vertices, faces) -> np.ndarray:
     """Exact distance (mm) from each point to the surface ``(vertices, faces)``, (P,) float64."""
-    return TriangleGrid(vertices, faces).distance(points)
+    v, f = check_arrays(vertices, faces)
+    if f.shape[0] == 0:
+        raise AnatomeshError("cannot measure distances to a surface without triangles")
+    return TriangleGrid(v, f).distance(points)
 
 
 def surface_distance(a_vertices, a_faces, b_vertices, b_faces) -> Dict[str, float]:
@@ -108,7 +83,7 @@ def vertex_curvatures(vertices, faces) -> Tuple[np.ndarray, np.ndarray, np.ndarr
     area : (N,) float64, mm² — the mixed Voronoi area of each vertex (0 if unused).
     Values at open-boundary vertices are not meaningful.
     """
-    v, f = _arrays(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     s = _structure(f, v.shape[0])
     H, K, A = np.zeros(len(v)), np.zeros(len(v)), np.zeros(len(v))
     _k.vertex_curvatures(v, s.faces, s.vf_offsets, s.vf, H, K, A)
@@ -132,7 +107,7 @@ def curvature_summary(vertices, faces) -> Dict[str, float]:
 
 def triangle_angles(vertices, faces) -> np.ndarray:
     """Interior angles in degrees, (M, 3) float64 (corner k at vertex ``faces[:, k]``)."""
-    v, f = _arrays(vertices, faces)
+    v, f = check_arrays(vertices, faces)
     out = np.empty((f.shape[0], 3))
     _k.triangle_angles(v, f, out)
     return np.degrees(out)
@@ -151,8 +126,8 @@ def triangle_quality(vertices, faces) -> Dict[str, float]:
 
 def flipped_faces(before_vertices, after_vertices, faces) -> int:
     """Faces whose normal turned by more than 90° (folds created by smoothing)."""
-    a, f = _arrays(before_vertices, faces)
-    b, _ = _arrays(after_vertices, faces)
+    a, f = check_arrays(before_vertices, faces)
+    b, _ = check_arrays(after_vertices, faces)
 
     def normals(v):
         return np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
@@ -180,8 +155,8 @@ def compare(before_vertices, after_vertices, faces, *, distances: bool = True,
     their faces, so components, genus, closedness and orientation cannot change (they are
     computed once); degenerate (zero-area) faces and folds are what smoothing can add.
     """
-    a, f = _arrays(before_vertices, faces, "before")
-    b, _ = _arrays(after_vertices, faces, "after")
+    a, f = check_arrays(before_vertices, faces)
+    b, _ = check_arrays(after_vertices, faces)
     if a.shape != b.shape:
         raise AnatomeshError(f"before and after must have the same vertices, got {a.shape} and {b.shape}")
     used = np.unique(f)

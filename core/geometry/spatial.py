@@ -4,8 +4,8 @@ Any stage that measures distances to a surface (print checks, smoothing and deci
 mm) can build one :class:`TriangleGrid` and query it many times. Triangles are binned by their
 bounding boxes into cubic cells of side ``cell_size`` mm (default twice the mean edge length,
 enlarged so that there are at most ~8 cells per triangle). Numba kernels, queries in parallel,
-no allocation per query. :class:`anatomesh.core.geometry.measure.TriangleGrid` is this grid with a
-``distance`` method: one grid for every distance query in Anatomesh.
+no allocation per query: one grid for every distance query in Anatomesh
+(:mod:`anatomesh.core.geometry.measure` measures with it).
 
 * :meth:`TriangleGrid.closest` — nearest surface point of each query point (Ericson 2004,
   "Real-Time Collision Detection", §5.1.5), searched ring by ring of cells with a distance bound.
@@ -161,6 +161,10 @@ class TriangleGrid:
         return _k.cast_rays(o, d, self.vertices, self.faces, self.origin, self.cell_size, self.dims,
                             self.start, self.items, float(t_min), float(t_max), sv,
                             bool(count_all), float(edge_tolerance))
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Exact distance (mm) from each point (P, 3) to the nearest triangle, (P,) float64."""
+        return self.closest(_as_points(points))[0]
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Inside test (P,) bool for a closed surface: odd crossings along a ray, majority of

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from anatomesh.core.geometry import measure as M
+from anatomesh.core.geometry.spatial import TriangleGrid
 from anatomesh.core.model.errors import AnatomeshError
 from helpers.meshes import icosphere, torus
 
@@ -45,7 +46,7 @@ def test_point_to_surface_matches_brute_force():
 def test_distance_grid_is_exact_for_far_points_and_degenerate_triangles():
     v = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0]], float)
     f = np.array([[0, 1, 2], [0, 1, 3]])  # the first is degenerate (a segment)
-    g = M.TriangleGrid(v, f, cell=0.25)
+    g = TriangleGrid(v, f, cell_size=0.25)
     d = g.distance(np.array([[2.0, 0, 30.0], [3.0, 0, 0], [0.2, 0.2, -1.0]]))
     np.testing.assert_allclose(d, [30.0, 1.0, 1.0], atol=1e-12)
 
