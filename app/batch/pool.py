@@ -1,14 +1,16 @@
 """The embedded engine: studies on this machine, in a pool of worker processes sized by cores and
 memory.
 
-Each worker is a long-lived process (``spawn``: nothing of the caller's state is shared) that
-runs one study at a time and reports its stages back over a pipe. A study starts only when its
+Each worker is a long-lived process that runs one study at a time and reports its stages back
+over a pipe. Workers are forked from a clean server process that has imported the pipeline once
+(``forkserver``, where the system has it; else ``spawn``): nothing of the caller's state (threads,
+open files) is shared, and a worker that replaces a dead one starts in milliseconds. A study starts only when its
 estimated peak memory fits in what the running ones leave of the budget (one that fits nowhere
 runs alone). A worker that dies while running a study — the kernel's out-of-memory killer, a
 crash in native code — fails that study alone ("worker process died ..."); a fresh worker takes
 its place and the other studies go on. Workers die with the process that started them (Linux:
-``PR_SET_PDEATHSIG``; elsewhere they notice within a second), so a killed batch leaves nothing
-running.
+``PR_SET_PDEATHSIG`` on their parent, which ends with the batch; elsewhere they notice within a
+second), so a killed batch leaves nothing running.
 """
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ class _Slot:
 
     def __init__(self, ctx, func: Callable, threads: int):
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=worker_main, args=(child, func, threads, os.getpid()), daemon=True)
+        self.process = ctx.Process(target=worker_main, args=(child, func, threads), daemon=True)
         self.process.start()
         child.close()
         self.task: Optional[StudyTask] = None
@@ -56,7 +58,7 @@ def run_pool(tasks: List[StudyTask], workers: int, budget: int,
     """Run ``tasks`` on ``workers`` processes within ``budget`` bytes; yields each study's
     outcome (see :func:`~anatomesh.app.batch.worker.run_study`) as it finishes. ``func`` is
     the study function (importable at module level; tests pass one that crashes)."""
-    ctx = multiprocessing.get_context("spawn")
+    ctx = worker_context()
     threads = max(1, (os.cpu_count() or 1) // max(1, workers))
     queue: Deque[StudyTask] = collections.deque(tasks)
     slots: List[_Slot] = []
@@ -75,6 +77,16 @@ def run_pool(tasks: List[StudyTask], workers: int, budget: int,
     finally:
         for slot in slots:
             slot.stop()
+
+
+def worker_context():
+    """The multiprocessing context of the workers: a fork server that preloads the pipeline, or
+    ``spawn`` where there is none (Windows)."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload([__name__])
+    return ctx
 
 
 def _admit(queue: Deque[StudyTask], slots: List[_Slot], workers: int, budget: int, new_slot) -> None:
@@ -135,9 +147,9 @@ def died(task: StudyTask, exitcode: Optional[int]) -> Dict:
             "error": f"the worker process died while running this study ({why}); the others went on"}
 
 
-def worker_main(conn, func: Callable, threads: int, parent: int) -> None:
+def worker_main(conn, func: Callable, threads: int) -> None:
     """A worker process: run the studies sent over ``conn`` until it closes."""
-    _die_with_parent(parent)
+    _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     try:
         import numba
@@ -165,8 +177,10 @@ def _stage_sender(conn) -> Callable[[float, str], None]:
     return progress
 
 
-def _die_with_parent(parent: int) -> None:
-    """Make this worker end when the batch process ends, even by SIGKILL."""
+def _die_with_parent() -> None:
+    """Make this worker end when its parent ends (the batch process, or the fork server, which
+    ends with it), even by SIGKILL."""
+    parent = os.getppid()
     try:
         import ctypes
 
