@@ -9,10 +9,12 @@ restarted by its nanny) and reschedules the study of a lost worker; a study whos
 too often (``KilledWorker``) fails alone. Workers need Anatomesh installed and must see the
 inputs and the output folder under the same paths (a shared file system). Start them with one
 thread each (``dask worker tcp://host:8786 --nworkers N --nthreads 1 --memory-limit 4GB``):
-a study is one process's work. Stages come back as Dask events (topic ``anatomesh-batch``).
+a study is one process's work (numba's threads are set to one per task unless
+``NUMBA_NUM_THREADS`` is set). Stages come back as Dask events (topic ``anatomesh-batch``).
 """
 from __future__ import annotations
 
+import os
 import time
 import uuid
 from typing import Callable, Dict, Iterator, List, Optional
@@ -57,6 +59,10 @@ def dask_study(task: StudyTask) -> Dict:
     from distributed import get_worker
 
     worker, last = get_worker(), [0.0, ""]
+    if "NUMBA_NUM_THREADS" not in os.environ:  # one core per worker process, as Dask advises
+        import numba
+
+        numba.set_num_threads(1)
 
     def progress(fraction: float, text: str = "") -> None:
         now = time.monotonic()

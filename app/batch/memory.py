@@ -3,9 +3,10 @@ volume's size (read from the file header only, no voxel is read), the cores and 
 
 The estimate is ``WORKER_BYTES + BYTES_PER_VOXEL * voxels``: a worker process with the pipeline
 loaded, plus what one voxel of the label map costs at the pipeline's peak (the label array, the
-extraction's bit planes and the surfaces, smoothed). Both numbers were measured with
-``benchmarks/bench_batch.py`` (peak resident memory of the default recipe on the TotalSegmentator
-maps, up to 37 million voxels) and rounded up.
+extraction's bit planes and the surfaces, smoothed). Measured peak resident memory of one run
+of the default recipe (organ smoothing) on the TotalSegmentator maps: 0.37 M voxels (41 labels)
+290 MiB; the 61-label map upsampled 2x (11 M voxels) 824 MiB, 3x (37 M voxels) 1631 MiB, i.e.
+a ~200 MiB process plus 38-57 bytes per voxel. The constants below cover these with a margin.
 """
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ from typing import Optional, Tuple
 
 #: resident memory of a worker process with the pipeline loaded (numpy, numba kernels), bytes
 WORKER_BYTES = 320 * 2**20
-#: peak bytes per voxel of a study's label map with the default recipe (measured ~25 B, with margin)
-BYTES_PER_VOXEL = 48
+#: peak bytes per voxel of a study's label map with the default recipe (measured <= 57 B)
+BYTES_PER_VOXEL = 64
 #: the estimate for a study whose size cannot be read from a header
 UNKNOWN_BYTES = 2 * 2**30
 #: fraction of the free memory the batch plans to use

@@ -43,13 +43,19 @@ class _Slot:
         self.task: Optional[StudyTask] = None
 
     def stop(self) -> None:
+        """End the worker: an idle one by closing its pipe (it exits cleanly), a busy one (the
+        batch was interrupted) by SIGTERM, then SIGKILL."""
+        if self.task is None:
+            self.conn.close()
+            self.process.join(5)
         if self.process.is_alive():
             self.process.terminate()
-        self.process.join(2)
+            self.process.join(2)
         if self.process.is_alive():
             self.process.kill()
             self.process.join(2)
-        self.conn.close()
+        if not self.conn.closed:
+            self.conn.close()
 
 
 def run_pool(tasks: List[StudyTask], workers: int, budget: int,
