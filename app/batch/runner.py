@@ -48,6 +48,7 @@ def run(inputs: Union[str, Path, Sequence], recipe: Union[Recipe, str, Path, Non
     recipe = batch_recipe(recipe)
     studies = list(inputs) if _all_studies(inputs) else find_studies(inputs)
     out = Path(out).expanduser().resolve()
+    studies = [s for s in studies if not Path(s.path).resolve().is_relative_to(out)]  # OUT inside INPUTS
     out.mkdir(parents=True, exist_ok=True)
     with state.Lock(out):
         state.clear_partials(out)

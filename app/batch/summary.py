@@ -3,7 +3,8 @@
 per study and the table.
 
 Columns (:data:`COLUMNS`): ``study``, ``status`` ("done": ran now, "skipped": done by an earlier
-run with the same recipe and input, "failed"), ``surface`` (name), ``value`` (label value or
+run with the same recipe and input, "failed", "pending": not run, the batch was interrupted),
+``surface`` (name), ``value`` (label value or
 isovalue), ``faces``, ``volume_mm3``, ``area_mm2``, ``closed`` (watertight), ``volume_change_pct``
 and ``max_deviation_mm`` (smoothing: volume change and Hausdorff distance to the raw surface),
 ``decimation_volume_change_pct`` and ``decimation_max_error_mm``, ``warnings`` (how many the

@@ -270,8 +270,10 @@ def test_dask_local_cluster_gives_identical_results(cohort, pooled):
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         stages = []
-        rows = batch.run(cohort / "studies", cohort / "fast.toml", out, scheduler=cluster,
+        rows = batch.run(cohort / "studies", cohort / "fast.toml", out, scheduler=cluster.scheduler_address,
                          progress=lambda f, t: stages.append(t))
+        again = batch.run(cohort / "studies", cohort / "fast.toml", out, scheduler=cluster)  # the object
+    assert {r["study"]: r["status"] for r in again} == {**{s: "skipped" for s in GOOD}, "broken": "failed"}
     keep = ("study", "status", "surface", "value", "faces", "volume_mm3", "area_mm2", "closed", "error")
     assert [{k: r[k] for k in keep} for r in rows] == [{k: r[k] for k in keep} for r in rows_pool]
     for study in GOOD:
@@ -294,3 +296,10 @@ def _wait_for_a_study(proc, out: Path, timeout: float = 240) -> str:
         time.sleep(0.02)
     proc.kill()
     pytest.fail("no study finished in time")
+
+
+def test_output_folder_inside_the_inputs_is_no_study(cohort, tmp_path):
+    shutil.copy(shared(*BRAIN), tmp_path / "brain.nrrd")
+    batch.run(tmp_path, cohort / "fast.toml", tmp_path / "results", workers=1)
+    rows = batch.run(tmp_path, cohort / "fast.toml", tmp_path / "results", workers=1)
+    assert [(r["study"], r["status"]) for r in rows] == [("brain", "skipped")]
