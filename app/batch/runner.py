@@ -70,6 +70,7 @@ def run(inputs: Union[str, Path, Sequence], recipe: Union[Recipe, str, Path, Non
                 settled[outcome["id"]] = _settle(outcome, out, by_id[outcome["id"]])
                 bar.finished(outcome["id"], outcome["status"] == "done")
         finally:
+            engine.close()  # stops the workers (or cancels the Dask tasks) now, also when interrupted
             rows = [r for s in studies for r in settled.get(s.id) or study_rows(s.id, "pending", s.path, None)]
             write_summary(out, rows)
     return rows
