@@ -107,21 +107,7 @@ def write_glb(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         return len(doc["accessors"]) - 1
 
     for k, m in enumerate(meshes):
-        small = m.n_vertices < 65536
-        attrs = {"POSITION": add(m.vertices, _FLOAT, "VEC3", _ARRAY_BUFFER, minmax=True),
-                 "NORMAL": add(_unit_normals(m), _FLOAT, "VEC3", _ARRAY_BUFFER)}
-        if m.vertex_colors is not None:  # glTF's COLOR_0 is linear; it multiplies the base colour
-            c = m.vertex_colors
-            lin = np.concatenate([srgb_to_linear(c[:, :3]), c[:, 3:]], axis=1)
-            attrs["COLOR_0"] = add(lin, _FLOAT, "VEC4" if c.shape[1] == 4 else "VEC3", _ARRAY_BUFFER)
-        idx = add(m.faces.ravel(), _UINT16 if small else _UINT32, "SCALAR", _ELEMENT_ARRAY_BUFFER)
-        doc["meshes"].append({"name": m.name or f"surface_{k + 1}", "primitives": [
-            {"attributes": attrs, "indices": idx, "material": k, "mode": 4}]})
-        doc["materials"].append(_material(m, k))
-        node = {"name": m.name or f"surface_{k + 1}", "mesh": k}
-        if m.value is not None:
-            node["extras"] = {"anatomesh_value": m.value, "anatomesh_space": m.space}
-        doc["nodes"].append(node)
+        _add_mesh(doc, add, m, k)
     doc["buffers"].append({"byteLength": offset})
     body = json.dumps(doc, separators=(",", ":")).encode("utf-8")
     body += b" " * (-len(body) % 4)
@@ -137,6 +123,26 @@ def write_glb(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         for b in blobs:
             fh.write(b)
     return path
+
+
+def _add_mesh(doc: Dict, add, m: Mesh, k: int) -> None:
+    """Mesh ``k`` as a glTF mesh (positions, normals, colours when given, indices), its material
+    and its node; ``add(array, component type, type, target)`` stores an accessor."""
+    attrs = {"POSITION": add(m.vertices, _FLOAT, "VEC3", _ARRAY_BUFFER, minmax=True),
+             "NORMAL": add(_unit_normals(m), _FLOAT, "VEC3", _ARRAY_BUFFER)}
+    if m.vertex_colors is not None:  # glTF's COLOR_0 is linear; it multiplies the base colour
+        c = m.vertex_colors
+        lin = np.concatenate([srgb_to_linear(c[:, :3]), c[:, 3:]], axis=1)
+        attrs["COLOR_0"] = add(lin, _FLOAT, "VEC4" if c.shape[1] == 4 else "VEC3", _ARRAY_BUFFER)
+    small = m.n_vertices < 65536
+    idx = add(m.faces.ravel(), _UINT16 if small else _UINT32, "SCALAR", _ELEMENT_ARRAY_BUFFER)
+    doc["meshes"].append({"name": m.name or f"surface_{k + 1}", "primitives": [
+        {"attributes": attrs, "indices": idx, "material": k, "mode": 4}]})
+    doc["materials"].append(_material(m, k))
+    node = {"name": m.name or f"surface_{k + 1}", "mesh": k}
+    if m.value is not None:
+        node["extras"] = {"anatomesh_value": m.value, "anatomesh_space": m.space}
+    doc["nodes"].append(node)
 
 
 def _unit_normals(m: Mesh) -> np.ndarray:
