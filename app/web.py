@@ -32,12 +32,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
 
+import numpy as np
+
 from ..core.export.common import atomic_write, refuse_overwrite
 from ..core.model.errors import AnatomeshError
 from ..core.model.labels import SYSTEMS, rgba, structure_system
 from ..core.model.mesh import Mesh, signed_volume, surface_area
 from ..core.model.progress import Progress, report
-from .web_pack import LevelPack, encoded_level, level_script, quantization_for
+from .web_pack import LevelPack, display_vertices, encoded_level, level_script, quantization_for
 
 VIEWER_DIR = Path(__file__).resolve().parent / "web_viewer"
 #: files copied as they are from :data:`VIEWER_DIR`
@@ -140,8 +142,11 @@ def _scene_model(model: WebModel, ids: List[List[str]]) -> Dict:
         if m.name in shells and shells[m.name]["min_distance_mm"] is not None:
             s["min_distance_mm"] = shells[m.name]["min_distance_mm"]
         structures.append(s)
+    pts = np.concatenate([display_vertices(m) for m in model.levels[-1]])
     out = {"name": model.name, "structures": structures,
-           "triangles": [sum(x.n_faces for x in level) for level in model.levels]}
+           "triangles": [sum(x.n_faces for x in level) for level in model.levels],
+           "box": {"min": [round(float(x), 3) for x in pts.min(0)],  # display frame, full detail
+                   "max": [round(float(x), 3) for x in pts.max(0)]}}
     if model.distance:
         out["distance"] = {k: model.distance[k] for k in ("target", "colors")}
         out["distance"]["margins"] = model.distance["margins_mm"]

@@ -84,7 +84,8 @@ def encode_mesh(m: Mesh, q: Quantization) -> Dict:
         raise AnatomeshError(f"surface {m.name!r} has no triangles; leave it out of the page")
     idx, remap, n = mo.reorder_mesh(np.ascontiguousarray(m.faces, np.uint32).ravel(),
                                     triangles=True, optsize=True)
-    used = remap != np.uint32(0xFFFFFFFF)
+    remap = np.concatenate([remap, np.full(m.n_vertices - len(remap), 0xFFFFFFFF, remap.dtype)])
+    used = remap != np.uint32(0xFFFFFFFF)  # (remap covers the vertices up to the last used one)
     new = remap[used].astype(np.int64)
     grid = np.rint((display_vertices(m) - q.origin) / q.step)
     pos = np.zeros((n, 4), np.uint16)

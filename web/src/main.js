@@ -125,6 +125,12 @@ async function start() {
   });
   api.viewer = viewer;
   api.screenBox = (name) => viewer.screenBox(name);
+  api.pixels = () => {  // the canvas's pixels as base64 RGBA, rows bottom up (for tests)
+    const { width, height, rgba } = viewer.readPixels();
+    let bin = '';
+    for (let i = 0; i < rgba.length; i += 0x8000) bin += String.fromCharCode(...rgba.subarray(i, i + 0x8000));
+    return { width, height, data: btoa(bin) };
+  };
   wirePanel(viewer);
   wireModel(viewer, 0);
   for (const [k, level] of scene.levels.entries()) {

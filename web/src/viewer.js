@@ -50,7 +50,7 @@ export class Viewer {
     const headlight = new DirectionalLight(0xffffff, 2.2);
     headlight.position.set(0.3, 0.5, 1);
     this.camera.add(headlight);
-    this.scene.add(this.camera, new HemisphereLight(0xffffff, 0x606070, 1.3));
+    this.scene.add(this.camera, new HemisphereLight(0xffffff, 0x666666, 1.3));
     this.controls = new OrbitControls(this.camera, canvas);
     this.controls.addEventListener('change', () => this.requestRender());
     this.uniforms = { uOriented: { value: 0 }, uOrientedExponent: { value: 0.7 } };
@@ -102,18 +102,9 @@ export class Viewer {
     this.refreshMaterials();
   }
 
-  /** Scene bounds (Box3 of the visible structures, or all when none is visible). */
-  bounds(visibleOnly = false) {
-    const box = { min: [Infinity, Infinity, Infinity], max: [-Infinity, -Infinity, -Infinity] };
-    for (const it of this.items) {
-      const b = it.front.geometry.boundingBox;
-      if (!b || (visibleOnly && !it.visible)) continue;
-      ['x', 'y', 'z'].forEach((a, k) => {
-        box.min[k] = Math.min(box.min[k], b.min[a]);
-        box.max[k] = Math.max(box.max[k], b.max[a]);
-      });
-    }
-    return box;
+  /** The model's box (display frame, mm, full detail): {min: [x, y, z], max: [x, y, z]}. */
+  bounds() {
+    return this.model.box;
   }
 
   /** Front view of everything (patient facing the viewer, head up), whole scene in the frame. */
@@ -171,6 +162,7 @@ export class Viewer {
 
   /** Draw order of the see-through structures for the current view (view-math.js drawOrder). */
   sortTransparent() {
+    for (const it of this.items) it.front.renderOrder = it.back.renderOrder = 0;  // opaque: by depth
     const see = this.items.filter((it) => it.front.visible && it.front.material.transparent);
     const dir = new Vector3();
     this.camera.getWorldDirection(dir);
@@ -217,6 +209,17 @@ export class Viewer {
     return hit ? hit.item.s : null;
   }
 
+  /** The picture as drawn now (tests): {width, height, rgba: Uint8Array, rows bottom up}. */
+  readPixels() {
+    this.sortTransparent();
+    this.renderer.render(this.scene, this.camera);
+    const gl = this.renderer.getContext();
+    const [w, h] = [gl.drawingBufferWidth, gl.drawingBufferHeight];
+    const rgba = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
+    return { width: w, height: h, rgba };
+  }
+
   /** Bounding rectangle on the canvas (CSS px) of a structure's vertices: {x0, y0, x1, y1}. */
   screenBox(name) {
     const it = this.items.find((i) => i.s.name === name);
@@ -225,7 +228,7 @@ export class Viewer {
     const canvas = this.renderer.domElement;
     const v = new Vector3();
     const r = { x0: Infinity, y0: Infinity, x1: -Infinity, y1: -Infinity };
-    for (let k = 0; k < pos.count; k += 7) {
+    for (let k = 0; k < pos.count; k++) {
       v.fromBufferAttribute(pos, k).project(this.camera);
       const x = (v.x + 1) / 2 * canvas.clientWidth;
       const y = (1 - v.y) / 2 * canvas.clientHeight;
