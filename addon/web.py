@@ -95,12 +95,19 @@ def _nearest_colors(coarse, fine) -> Optional[np.ndarray]:
     return fine.vertex_colors[np.maximum(face, 0)]
 
 
-def surface_objects_of(context, selection: str) -> List[bpy.types.Object]:
-    """The objects an export means: the selected surface meshes, or the active scan's."""
+def surface_objects_of(context, selection: str, collection: str = "") -> List[bpy.types.Object]:
+    """The objects an export means: the selected meshes, or the surface objects of the scan
+    collection named ``collection`` (default: the active scan)."""
     from .common import active_scan
 
     if selection == "SELECTED":
         return [o for o in context.selected_objects if o.type == "MESH"]
-    coll = active_scan(context)
+    coll = bpy.data.collections.get(collection) if collection else active_scan(context)
     return scene.surface_objects(coll) if coll is not None else []
 
+
+def neighbours_of(target) -> List[bpy.types.Object]:
+    """The surface objects of the collection holding ``target`` (``target`` among them)."""
+    coll = target.users_collection[0] if target.users_collection else None
+    objs = scene.surface_objects(coll) if coll is not None else []
+    return objs if target in objs else [target] + objs

@@ -8,10 +8,10 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ...core.export.common import file_stem
 from ...core.model.errors import AnatomeshError
-from ..common import abspath, active_scan, guarded
+from ..common import abspath, guarded
 from ..paint import show_vertex_colors
 from ..ui import props
-from ..web import export_web, paint_margins, surface_objects_of
+from ..web import export_web, neighbours_of, paint_margins, surface_objects_of
 
 
 class ANATOMESH_OT_export_web(bpy.types.Operator):
@@ -24,6 +24,7 @@ class ANATOMESH_OT_export_web(bpy.types.Operator):
     directory: StringProperty(name="Folder", subtype="DIR_PATH",
                               description="The page goes into <folder>/<scan>_web/index.html")
     selection: EnumProperty(name="What", items=props.EXPORT_SELECTION_ITEMS, default="COLLECTION")
+    collection: StringProperty(name="Scan", description="Scan collection (default: the active one)")
     levels: IntProperty(name="Levels of Detail", default=2, min=1, max=4,
                         description="The coarsest is shown first, finer ones replace it as they load")
     overwrite: BoolProperty(name="Overwrite", default=False, description="Replace an existing page")
@@ -33,11 +34,10 @@ class ANATOMESH_OT_export_web(bpy.types.Operator):
         folder = abspath(self.directory or context.scene.anatomesh.export_dir)
         if not folder:
             raise AnatomeshError("no output folder; set one in the Export panel or pass directory=")
-        objs = surface_objects_of(context, self.selection)
+        objs = surface_objects_of(context, self.selection, self.collection)
         if not objs:
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
-        coll = active_scan(context)
-        title = coll.name if coll is not None and self.selection != "SELECTED" else objs[0].users_collection[0].name
+        title = objs[0].users_collection[0].name if objs[0].users_collection else "surfaces"
         out = os.path.join(folder, file_stem(title) + "_web")
         summary = export_web(context, objs, out, title=title, levels=self.levels, overwrite=self.overwrite)
         self.report({"INFO"}, f"Wrote {summary['page']} ({summary['total_bytes'] / 1e6:.2f} MB, "
@@ -63,9 +63,7 @@ class ANATOMESH_OT_paint_margins(bpy.types.Operator):
         target = bpy.data.objects.get(self.target) if self.target else context.active_object
         if target is None or target.type != "MESH":
             raise AnatomeshError("choose the target: make a surface object active (or pass target=)")
-        objs = surface_objects_of(context, "COLLECTION")
-        if target not in objs:
-            objs = [o for o in target.users_collection[0].objects if o.type == "MESH"]
+        objs = neighbours_of(target)
         try:
             margins = check_margins([float(x) for x in self.margins.split(",") if x.strip()])
         except ValueError:

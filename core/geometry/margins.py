@@ -9,8 +9,12 @@ default; farther vertices keep the structure's own colour. Colours are sRGB, sto
 ``Mesh.vertex_colors`` (the GLB writer writes them as ``COLOR_0``, the PLY writer as uchar, the
 Blender scene as a colour attribute, the web page shows them).
 
-The distance is unsigned: a vertex touching or inside the target is at 0 mm. Distances beyond the
-largest margin are not needed for the colours and are searched no farther (they are ``inf``).
+A vertex inside the (closed, outward) target — a vessel running through a tumour — is at 0 mm,
+as one touching it: inside is told by the side of the closest point's angle-weighted pseudonormal
+(Bærentzen & Aanæs 2005, "Signed distance computation using the angle weighted pseudonormal"),
+exact for a closed oriented surface, also where the closest point is on an edge or a vertex.
+Distances beyond the largest margin are not needed for the colours and are searched no farther
+(they are ``inf``).
 """
 from __future__ import annotations
 
@@ -42,10 +46,47 @@ def check_margins(margins: Sequence[float]) -> Tuple[float, ...]:
 
 
 def surface_distances(points: np.ndarray, target: TriangleGrid, max_distance: float) -> np.ndarray:
-    """Exact distance (mm) from each point (P, 3) to the target surface, (P,) float64; ``inf``
-    where nothing is within ``max_distance`` mm."""
+    """Exact distance (mm) from each point (P, 3) to the closed target surface, (P,) float64:
+    0 inside it, ``inf`` where nothing is within ``max_distance`` mm."""
     p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
-    return target.closest(p, max_distance=float(max_distance))[0]
+    d, face, q, feat = target.closest(p, max_distance=float(max_distance), return_feature=True)
+    used = target.vertices[np.unique(target.faces)]
+    lo, hi = used.min(0), used.max(0)
+    deep = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1) & ~np.isfinite(d))
+    if deep.size:  # an inside point is within half the box's smallest side of the surface
+        dd, ff, qq, fe = target.closest(p[deep], max_distance=0.5 * float(np.min(hi - lo)) + 1e-9,
+                                        return_feature=True)
+        face[deep], q[deep], feat[deep] = ff, qq, fe
+    near = np.flatnonzero((face >= 0) & (d > 0))  # a closest point found, not on the surface
+    if near.size:
+        n = _pseudonormals(target.vertices, target.faces)[face[near], feat[near]]
+        inside = np.einsum("ij,ij->i", p[near] - q[near], n) < 0
+        d[near[inside]] = 0.0
+    return d
+
+
+def _pseudonormals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """(M, 7, 3) the pseudonormal of each feature of each face (feature codes of
+    :meth:`TriangleGrid.closest`: corners 0-2 the angle-weighted vertex normals, edges 3-5 the sum
+    of the two faces' normals, 6 the face normal), Bærentzen & Aanæs 2005."""
+    f = np.asarray(f, np.int64)
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    fn = np.cross(b - a, c - a)
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    out = np.empty((len(f), 7, 3))
+    vn = np.zeros((len(v), 3))
+    for k, (p0, p1, p2) in enumerate(((a, b, c), (b, c, a), (c, a, b))):  # corner k's angle
+        u, w = p1 - p0, p2 - p0
+        ang = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
+        np.add.at(vn, f[:, k], ang[:, None] * fn)
+    out[:, :3] = vn[f]
+    edges = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1), axis=2).reshape(-1, 2)
+    _, key = np.unique(edges, axis=0, return_inverse=True)
+    en = np.zeros((key.max() + 1, 3))
+    np.add.at(en, key.ravel(), np.repeat(fn, 3, axis=0))
+    out[:, 3:6] = en[key.reshape(-1, 3)]
+    out[:, 6] = fn
+    return out
 
 
 def margin_colors(distances: np.ndarray, margins: Sequence[float], base_color,

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from anatomesh.core.geometry.margins import (MARGIN_COLORS, check_margins, color_by_distance,
-                                             find_target, margin_colors)
+                                             find_target, margin_colors, surface_distances)
+from anatomesh.core.geometry.spatial import TriangleGrid
 from anatomesh.core.io import load
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh
@@ -35,6 +36,15 @@ def test_heights_above_a_plane_get_their_band():
         assert summary["shells"][f"p{h}"]["min_distance_mm"] == pytest.approx(h, abs=1e-5)
     assert summary["shells"]["p20.0"]["min_distance_mm"] is None
     assert summary["shells"]["p1.0"]["within_mm"]["2"] > 0 and summary["target"] == "tumour"
+
+
+def test_inside_the_target_is_zero_distance():
+    v, f = icosphere(3, 20.0)
+    grid = TriangleGrid(v, f)
+    pts = np.array([[0.0, 0, 0], [15.0, 0, 0], [0, 0, 19.0], [23.0, 0, 0], [45.0, 0, 0]])
+    d = surface_distances(pts, grid, 10.0)
+    assert d[:3].tolist() == [0.0, 0.0, 0.0]  # deep inside (20 mm from the surface) too
+    assert d[3] == pytest.approx(3.0, abs=0.05) and d[4] == np.inf
 
 
 def test_margin_colors_picks_the_first_margin_that_holds():
