@@ -13,6 +13,8 @@ A vertex inside the (closed, outward) target — a vessel running through a tumo
 as one touching it: inside is told by the side of the closest point's angle-weighted pseudonormal
 (Bærentzen & Aanæs 2005, "Signed distance computation using the angle weighted pseudonormal"),
 exact for a closed oriented surface, also where the closest point is on an edge or a vertex.
+Vertices deeper inside than the largest margin are first proposed by ray parity
+(:meth:`~anatomesh.core.geometry.spatial.TriangleGrid.contains`), then decided the same way.
 Distances beyond the largest margin are not needed for the colours and are searched no farther
 (they are ``inf``).
 """
@@ -50,9 +52,10 @@ def surface_distances(points: np.ndarray, target: TriangleGrid, max_distance: fl
     0 inside it, ``inf`` where nothing is within ``max_distance`` mm."""
     p = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
     d, face, q, feat = target.closest(p, max_distance=float(max_distance), return_feature=True)
-    used = target.vertices[np.unique(target.faces)]
-    lo, hi = used.min(0), used.max(0)
+    lo, hi = target.origin, target.origin + target.dims * target.cell_size  # the grid's box
     deep = np.flatnonzero(np.all((p >= lo) & (p <= hi), axis=1) & ~np.isfinite(d))
+    if deep.size:  # beyond the margins: ray parity proposes, the pseudonormal below decides
+        deep = deep[target.contains(p[deep])]
     if deep.size:  # an inside point is within half the box's smallest side of the surface
         dd, ff, qq, fe = target.closest(p[deep], max_distance=0.5 * float(np.min(hi - lo)) + 1e-9,
                                         return_feature=True)
@@ -152,10 +155,12 @@ def color_by_distance(meshes: Sequence[Mesh], target, margins: Sequence[float] =
     grid = TriangleGrid(surf.vertices, surf.faces)
     shells: Dict[str, Dict] = {}
     meshes[k].vertex_colors = None  # the target keeps its own colour
-    for i, m in enumerate(meshes):
-        if i == k:
-            continue
-        d = surface_distances(m.vertices, grid, margins[-1])
+    others = [i for i in range(len(meshes)) if i != k]
+    stacked = surface_distances(np.concatenate([meshes[i].vertices for i in others] or [np.zeros((0, 3))]),
+                                grid, margins[-1])
+    ends = np.cumsum([0] + [meshes[i].n_vertices for i in others])
+    for j, i in enumerate(others):
+        m, d = meshes[i], stacked[ends[j]:ends[j + 1]]
         m.vertex_colors = margin_colors(d, margins, m.color)
         near = float(d.min()) if d.size and np.isfinite(d.min()) else None
         shells[m.name] = {"min_distance_mm": None if near is None else round(near, 3),
