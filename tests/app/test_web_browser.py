@@ -187,3 +187,32 @@ def test_a_page_of_two_variants_switches_models(chromium, sample_run, tmp_path):
         p.page.screenshot(path=str(SHOTS / "variants.png"))
     finally:
         p.page.close()
+
+
+def test_the_same_page_works_from_a_static_server(chromium, sample_run):
+    """Served over HTTP on the loopback address (python's http.server): same page, same levels."""
+    import functools
+    import http.server
+    import threading
+
+    folder = sample_run[1]
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(folder))
+    handler.log_message = lambda *a, **k: None
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/"
+        page = chromium.new_page(viewport={"width": 900, "height": 560})
+        requests, errors = [], []
+        page.on("request", lambda r: requests.append(r.url))
+        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        page.goto(url + "index.html")
+        page.wait_for_function("window.anatomesh && window.anatomesh.done === true", timeout=90000)
+        assert errors == [] and page.evaluate("anatomesh.errors") == []
+        assert page.evaluate("anatomesh.levels.length") == 2
+        assert requests and all(u.startswith(url) for u in requests), requests
+        page.close()
+    finally:
+        server.shutdown()
+        server.server_close()
