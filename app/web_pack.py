@@ -19,10 +19,11 @@ shrinks by a quarter, and browsers inflate natively (``DecompressionStream``).
 """
 from __future__ import annotations
 
+import base64
 import hashlib
 import zlib
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List
 
 import numpy as np
 
@@ -136,8 +137,6 @@ class LevelPack:
 def level_script(level: int, deflated: bytes) -> bytes:
     """The JavaScript file of one level: ``anatomeshLevel(k, "<base64>");`` (a classic script, so
     pages opened from ``file://`` can load it; no request is made)."""
-    import base64
-
     return b"anatomeshLevel(%d,\"" % level + base64.b64encode(deflated) + b"\");\n"
 
 
@@ -145,9 +144,3 @@ def encoded_level(meshes: List[Mesh], q: Quantization, pack: LevelPack) -> List[
     """Encode ``meshes`` into ``pack``; their ids in order."""
     return [pack.add(encode_mesh(m, q)) for m in meshes]
 
-
-def bytes_of(path) -> Optional[int]:
-    from pathlib import Path
-
-    p = Path(path)
-    return p.stat().st_size if p.exists() else None
