@@ -149,11 +149,12 @@ class ANATOMESH_PT_export(_Base, Panel):
         col.prop(s, "export_selection")
         op = self.layout.operator("anatomesh.export", icon="EXPORT")
         op.directory, op.format, op.selection = s.export_dir, s.export_format, s.export_selection
-        # the web page (issue 16)
-        op = self.layout.operator("anatomesh.export_web", text="Export Web", icon="WORLD")
-        op.directory, op.selection = s.export_dir, s.export_selection
         coll = active_scan(context)
         op.collection = coll.name if coll is not None else ""
+        # the web page (issue 16)
+        web = self.layout.operator("anatomesh.export_web", text="Export Web", icon="WORLD")
+        web.directory, web.selection = s.export_dir, s.export_selection
+        web.collection = coll.name if coll is not None else ""
 
 
 def menu_import(self, context):
