@@ -19,11 +19,13 @@ from ..core.export import SCENE_FORMATS, write_mesh
 from ..core.export.common import file_stem, refuse_overwrite, unique_stems
 from ..core.model.errors import AnatomeshError
 from ..core.model.mesh import Mesh
-from ..core.model.progress import Progress, report
+from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from .recipe import RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, Recipe
+from .recipe import RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
 from .stages import clean
+from .web import page_paths, write_page
+from .web_models import model_of_run
 
 #: entry-point group through which the add-on offers its ``.blend``/PNG writer (pyproject.toml)
 BLENDER_ENTRY_POINTS = "anatomesh.blender"
@@ -62,6 +64,8 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
              if fmt in recipe.formats}
     lods = [out_dir / f"{stem}_lod{i}.glb" for i in range(recipe.lod if recipe.lod > 1 else 0)]
     p = Plan(per_surface, scene, lods, report_path, report_path.parent / RECIPE_FILE, stem)
+    if WEB_FORMAT in recipe.formats:  # issue 16: the page's folder
+        p.extra += page_paths(web_dir(recipe), recipe.web_levels)
     refuse_overwrite(p.all_paths(), recipe.overwrite)
     return p
 
@@ -120,6 +124,25 @@ def write_lods(surfaces: SurfaceSet, recipe: Recipe, p: Plan,
         out.append({"file": relative(path, base), "faces": int(sum(m.n_faces for m in meshes)),
                     **{key: round(v, 4) for key, v in worst.items()}})
     return out
+
+
+# --- the web page (issue 16) ----------------------------------------------------------------------
+def web_dir(recipe: Recipe) -> Path:
+    """The folder of the "web" output: ``<out>/web`` (open ``index.html`` there)."""
+    return Path(recipe.out_dir) / "web"
+
+
+def write_web(result, progress: Optional[Progress] = None) -> Optional[Dict]:
+    """The page of a run (format "web", :func:`anatomesh.app.web.write_page`) with its levels of
+    detail; returns its summary for the report (``page`` relative to the report), else None."""
+    recipe = result.recipe
+    if WEB_FORMAT not in recipe.formats or not result.surfaces:
+        return None
+    model = model_of_run(result, sub(progress, 0.0, 0.6))
+    summary = write_page([model], web_dir(recipe), title=result.plan.stem, overwrite=True,  # plan() checked
+                         progress=sub(progress, 0.6, 1.0))
+    summary["page"] = relative(Path(summary["page"]), result.plan.report.parent.resolve())
+    return summary
 
 
 def register_blender_writer(writer: Callable) -> None:

@@ -39,6 +39,7 @@ from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Union
 
+from ..core.geometry.margins import check_margins
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
@@ -48,7 +49,9 @@ SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel 
 #: per-surface formats, whole-scene formats, and the ones that need Blender (bpy)
 SURFACE_FORMATS = ("stl", "ply", "obj", "3mf")
 SCENE_ONLY_FORMATS = ("glb", "blend", "png")
-FORMATS = SURFACE_FORMATS + SCENE_ONLY_FORMATS
+#: the web page (issue 16): a folder (index.html + scripts), not one file
+WEB_FORMAT = "web"
+FORMATS = SURFACE_FORMATS + SCENE_ONLY_FORMATS + (WEB_FORMAT,)
 BLENDER_FORMATS = ("blend", "png")
 STAIRCASE = ("auto", "on", "off")
 PROFILES = tuple(PRINTER_PROFILES)
@@ -83,6 +86,10 @@ class Recipe:
     ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
     every shell's topology), all from one progressive decimation run (:mod:`anatomesh.core.decimate.progressive`,
     Hoppe 1996); 0 or 1: none.
+    Distance colouring and the web page: ``distance_to`` — a label name or value: every other
+    surface is coloured by its vertices' distance to that one's surface, within each of
+    ``margins`` (mm, default 2, 5, 10) red, yellow, green (:mod:`anatomesh.core.geometry.margins`);
+    ``web_levels`` — levels of detail of the "web" page (:mod:`anatomesh.app.web`), 1..4.
     """
 
     input: Union[str, List[str]] = ""
@@ -119,6 +126,10 @@ class Recipe:
     lod: int = 0
     report: Optional[str] = None
     overwrite: bool = False
+    # distance colouring and the web page (issue 16)
+    distance_to: Optional[Union[int, str]] = None
+    margins: List[float] = field(default_factory=lambda: [2.0, 5.0, 10.0])
+    web_levels: int = 2
 
 
 def check_recipe(recipe: Recipe) -> None:
@@ -152,6 +163,11 @@ def check_recipe(recipe: Recipe) -> None:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
+    # distance colouring and the web page (issue 16)
+    recipe.margins = list(check_margins(recipe.margins))
+    if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
+        raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "
+                             f"got {recipe.web_levels!r}")
 
 
 #: TOML section → {TOML key: Recipe field}
@@ -168,6 +184,9 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
+# distance colouring and the web page (issue 16)
+SECTIONS["distance"] = {"to": "distance_to", "margins_mm": "margins"}
+SECTIONS["web"] = {"levels": "web_levels"}
 #: a comment written above each section
 _NOTES = {
     "input": "scan or label map; labels: \"all\" or values/names; levels: isovalues of a scalar scan",
@@ -177,7 +196,10 @@ _NOTES = {
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
              "(groups of labels), thicken, clearance_mm",
-    "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
+    "output": "formats: stl, ply, obj, 3mf, glb, blend, png, web; lod: GLB levels of detail (0: none)",
+    "distance": "colour every surface by its distance (mm) to the structure `to` (name or value): "
+                "within margins_mm red, yellow, green",
+    "web": "the web page (format web): levels of detail, coarsest shown first",
 }
 #: Recipe fields holding paths (resolved against the recipe's folder)
 PATH_FIELDS = ("input", "label_table", "out_dir", "report")
@@ -224,6 +246,11 @@ _TYPES = {
     "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
                     "[width, height] in pixels"),
 }
+# distance colouring and the web page (issue 16)
+_TYPES["distance_to"] = (lambda v: isinstance(v, str) or _is_int(v), "a label name or value")
+_TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
+                     "a list of distances in mm, e.g. [2, 5, 10]")
+_TYPES["web_levels"] = (lambda v: _is_int(v), "a whole number (1..4)")
 _FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
                  "max_error", "min_wall", "min_gap", "clearance"}
 
@@ -280,7 +307,7 @@ def recipe_from_text(text: str, base=None, source=None) -> Recipe:
                 raise AnatomeshError(f"[{section}] {key} must be {allowed}, got {value!r}", source)
             if name in _FLOAT_FIELDS:
                 value = float(value)
-            if name == "levels":
+            if name in ("levels", "margins"):
                 value = [float(x) for x in value]
             if name == "series":
                 value = str(value)

@@ -43,6 +43,8 @@ class Result:
     lod: List[Dict] = field(default_factory=list)
     print_check: Optional[Dict] = None
     warnings: List[str] = field(default_factory=list)
+    distance: Optional[Dict] = None   # distance colouring summary (issue 16)
+    web: Optional[Dict] = None        # the web page's summary (issue 16)
 
     @property
     def report_path(self):
@@ -74,10 +76,12 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                                                       clock.sub(0.7))
     res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
     res.fixes += [fix] if fix else []
+    res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
     outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
     res.lod = outputs.write_lods(res.surface_set, recipe, res.plan, clock.sub(0.85))
+    res.web = outputs.write_web(res, clock.sub(0.85))  # issue 16
     if blender is not None:
         clock.start("blender", 0.85, "building the Blender scene")
         blender(res, res.plan.scene.get("blend"), render_png=res.plan.scene.get("png"),

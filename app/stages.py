@@ -25,6 +25,7 @@ import numpy as np
 from ..core.decimate.qem import decimate_surfaces
 from ..core.extract.isosurface import isosurfaces
 from ..core.extract.multilabel import label_surfaces
+from ..core.geometry.margins import color_by_distance
 from ..core.geometry.topology import component_measures
 from ..core.model.errors import AnatomeshError
 from ..core.model.labels import LabelInfo, select_labels
@@ -189,3 +190,14 @@ def value_key(value) -> str:
         return "None"
     v = float(value)
     return str(int(v)) if v.is_integer() else str(v)
+
+
+# --- distance colouring (issue 16) ---------------------------------------------------------------
+def distance_colors(meshes: List[Mesh], recipe: Recipe) -> Optional[Dict]:
+    """Colour ``meshes`` in place by their distance to ``recipe.distance_to`` (a name or value)
+    within ``recipe.margins`` mm (:func:`anatomesh.core.geometry.margins.color_by_distance`);
+    returns its summary, or None when no target is set."""
+    if recipe.distance_to is None:
+        return None
+    _, summary = color_by_distance(meshes, recipe.distance_to, recipe.margins)
+    return summary

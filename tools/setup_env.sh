@@ -21,6 +21,28 @@ if ! command -v admesh >/dev/null 2>&1 || ! command -v prusa-slicer >/dev/null 2
     echo "note: admesh/prusa-slicer missing (install as root: apt-get install admesh prusa-slicer); tests/test_slicers.py will skip" >&2
   fi
 fi
+# web page tests (issue 16): Debian's chromium, driven by Playwright (no browser is downloaded),
+# and node/npm with the viewer's packages (web/package-lock.json) for its unit tests and the
+# check that app/web_viewer/viewer.js is the build of the lockfile
+web_apt=""
+command -v chromium >/dev/null 2>&1 || web_apt="chromium"
+command -v npm >/dev/null 2>&1 || web_apt="$web_apt nodejs npm"
+if [ -n "$web_apt" ]; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $web_apt \
+      || echo "warning: could not install$web_apt; the web page tests will fail" >&2
+  else
+    echo "note:$web_apt missing (install as root: apt-get install$web_apt); the web page tests need them" >&2
+  fi
+fi
+if command -v npm >/dev/null 2>&1; then
+  web_stamp="web/node_modules/.anatomesh-lock"
+  web_want="$(sha1sum web/package-lock.json | cut -d' ' -f1)"
+  if [ ! -f "$web_stamp" ] || [ "$(cat "$web_stamp")" != "$web_want" ]; then
+    (cd web && npm ci --no-audit --no-fund --loglevel=error) && echo "$web_want" > "$web_stamp" \
+      || echo "warning: npm ci in web/ failed; the viewer's tests will fail" >&2
+  fi
+fi
 if [ -z "$PY" ]; then
   echo "error: Python 3.11 is needed (bpy 5.0.1 is built for it): sudo apt-get install python3.11 python3.11-venv" >&2
   exit 2

@@ -131,6 +131,8 @@ class ANATOMESH_PT_look(_Base, Panel):
             box.label(text=obj.name, icon="OBJECT_DATA")
             box.prop(obj, '["anatomesh_alpha"]', text="Opacity", slider=True)
             box.prop(obj, "color", text="Viewport colour")
+            # distance colours (issue 16): every surface by its distance to this one
+            box.operator("anatomesh.paint_margins", icon="DRIVER_DISTANCE").target = obj.name
         layout.operator("anatomesh.frame_camera", icon="CAMERA_DATA").collection = coll.name
 
 
@@ -149,6 +151,10 @@ class ANATOMESH_PT_export(_Base, Panel):
         op.directory, op.format, op.selection = s.export_dir, s.export_format, s.export_selection
         coll = active_scan(context)
         op.collection = coll.name if coll is not None else ""
+        # the web page (issue 16)
+        web = self.layout.operator("anatomesh.export_web", text="Export Web", icon="WORLD")
+        web.directory, web.selection = s.export_dir, s.export_selection
+        web.collection = coll.name if coll is not None else ""
 
 
 def menu_import(self, context):

@@ -1,4 +1,4 @@
-"""The ``anatomesh`` command: ``inspect``, ``mesh``, ``check`` and ``batch`` (one module each);
+"""The ``anatomesh`` command: ``inspect``, ``mesh``, ``check``, ``web`` and ``batch`` (one module each);
 ``python -m anatomesh.app.cli`` runs it too.
 
 Exit codes (:mod:`.common`): 0 success, 1 a print check failed, 2 bad input — one line on stderr
@@ -12,7 +12,7 @@ from typing import List, Optional
 
 from ...core.model.errors import AnatomeshError, Cancelled
 from . import check, inspect, mesh
-from . import batch  # feature: cohorts (anatomesh batch)
+from . import batch, web
 from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 
@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     subs = p.add_subparsers(dest="command")
-    for command in (inspect, mesh, check, batch):  # batch: feature cohorts
+    for command in (inspect, mesh, check, web, batch):
         sp = command.add_parser(subs)
         sp.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     return p

@@ -14,6 +14,7 @@ from ..recipe import FORMATS, Recipe, load_recipe
 from ..run import run
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
+from .web import add_distance_args, margins_arg  # issue 16
 
 #: flags that set the Recipe field of the same name as given
 RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
@@ -34,6 +35,7 @@ def add_parser(subs) -> argparse.ArgumentParser:
     _smoothing_args(m)
     _decimation_args(m)
     _print_args(m)
+    add_distance_args(m)  # issue 16: distance colouring, web page levels
     m.add_argument("--report", help="report path (default OUT/report.json; recipe.toml is written beside it)")
     m.add_argument("--overwrite", action="store_true", default=None, help="replace existing output files")
     m.set_defaults(func=cmd_mesh)
@@ -44,9 +46,10 @@ def _surface_args(m) -> None:
     m.add_argument("--level", type=float, action="append", metavar="VALUE",
                    help="isovalue for a scalar scan (repeat for several surfaces)")
     m.add_argument("--labels", help="all (default), or values/names: 1,5,7 or liver,spleen")
-    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, glb, blend, png (default stl); "
+    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, glb, blend, png, web (default stl); "
                                     "3mf also writes one combined print file, glb one file with every "
-                                    "surface, blend a Blender scene, png its Cycles render (need bpy)")
+                                    "surface, blend a Blender scene, png its Cycles render (need bpy), "
+                                    "web a 3D page OUT/web/index.html")
     m.add_argument("--space", choices=("RAS", "LPS"),
                    help="coordinate space of the written vertices (default RAS)")
     m.add_argument("--no-cap", dest="cap", action="store_false", default=None,
@@ -124,6 +127,10 @@ def recipe_from_args(args) -> Recipe:
             setattr(recipe, t, None)
     for name in RECIPE_FLAGS:
         value = getattr(args, name)
+        if value is not None:
+            setattr(recipe, name, value)
+    for name, value in (("distance_to", args.distance_to), ("margins", margins_arg(args.margins)),
+                        ("web_levels", args.web_levels)):  # issue 16
         if value is not None:
             setattr(recipe, name, value)
     if not recipe.input:

@@ -121,6 +121,33 @@ def anatomical_color(name: str) -> Optional[Tuple[float, float, float]]:
     return None
 
 
+# --- body systems (web page tree, issue 16): the system of each palette rule, by its first keyword
+#: the systems in the order a structure tree lists them
+SYSTEMS = ("organs", "vessels", "heart", "bones", "muscles", "nerves", "airways", "lesions", "other")
+_SYSTEM_OF_RULE = {
+    "tumour": "lesions", "cyst": "lesions", "intervertebral": "bones", "pulmonary artery": "vessels",
+    "pulmonary vein": "vessels", "vein": "vessels", "artery": "vessels", "heart": "heart",
+    "spinal cord": "nerves", "bone": "bones", "liver": "organs", "spleen": "organs",
+    "kidney": "organs", "lung": "organs", "brain": "nerves", "muscle": "muscles", "stomach": "organs",
+    "pancreas": "organs", "gallbladder": "organs", "urinary bladder": "organs", "adrenal": "organs",
+    "thyroid": "organs", "trachea": "airways", "fat": "other", "skin": "other", "prostate": "organs",
+    "eye": "organs",
+}
+
+
+def structure_system(name: str) -> str:
+    """The body system of a structure, one of :data:`SYSTEMS`, from the same keyword rules as
+    :func:`anatomical_color` (the first matching rule decides): ``"kidney_cyst_left"`` →
+    ``"lesions"``, ``"vertebrae_L3"`` → ``"bones"``, ``"portal_vein_and_splenic_vein"`` →
+    ``"vessels"``; names no rule knows → ``"other"``."""
+    tokens = name_tokens(name)
+    joined = "".join(tokens)
+    for keywords, _ in _PALETTE:
+        if any(_matches(k, tokens, joined) for k in keywords):
+            return _SYSTEM_OF_RULE.get(keywords[0], "other")
+    return "other"
+
+
 def distinct_color(value: int) -> Tuple[float, float, float]:
     """A saturated colour for ``value``: hues spaced by the golden ratio, so consecutive values differ."""
     hue = (int(value) * _GOLDEN) % 1.0

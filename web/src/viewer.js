@@ -1,0 +1,240 @@
+// The 3D view: three.js scene, camera, lights, the structures' meshes, progressive levels of
+// detail, transparency, clipping, picking, scale bar. The page's panel is wired in main.js.
+import {
+  BackSide, BufferAttribute, BufferGeometry, Color, DirectionalLight, FrontSide, Group,
+  HemisphereLight, Mesh, MeshStandardMaterial, OrthographicCamera, Plane, Raycaster, Scene,
+  SRGBColorSpace, Vector2, Vector3, WebGLRenderer,
+} from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { choosePick, clipPlane, drawOrder, scaleBar } from './view-math.js';
+
+/** Oriented transparency in the fragment shader (formula: view-math.js orientedAlpha). */
+function addOrientedAlpha(material, uniforms) {
+  material.onBeforeCompile = (shader) => {
+    shader.uniforms.uOriented = uniforms.uOriented;
+    shader.uniforms.uOrientedExponent = uniforms.uOrientedExponent;
+    shader.fragmentShader = shader.fragmentShader
+      .replace('#include <common>', '#include <common>\nuniform float uOriented;\nuniform float uOrientedExponent;')
+      .replace('#include <opaque_fragment>', `
+        vec3 viewDirection = isOrthographic ? vec3(0.0, 0.0, 1.0) : normalize(vViewPosition);
+        float facing = 1.0 - pow(clamp(abs(dot(normalize(normal), viewDirection)), 0.0, 1.0), uOrientedExponent);
+        diffuseColor.a = mix(diffuseColor.a, diffuseColor.a + (1.0 - diffuseColor.a) * facing, uOriented);
+        #include <opaque_fragment>`);
+  };
+  material.customProgramCacheKey = () => 'anatomesh-oriented';
+}
+
+function geometryOf(decoded) {
+  const g = new BufferGeometry();
+  g.setAttribute('position', new BufferAttribute(decoded.positions, 3));
+  g.setIndex(new BufferAttribute(decoded.indices, 1));
+  if (decoded.colors) g.setAttribute('color', new BufferAttribute(decoded.colors, 3));
+  g.computeVertexNormals();
+  g.computeBoundingSphere();
+  g.computeBoundingBox();
+  return g;
+}
+
+export class Viewer {
+  constructor(canvas, scene, onChange = () => {}) {
+    this.data = scene;
+    this.onChange = onChange;
+    this.renderer = new WebGLRenderer({ canvas, antialias: true });
+    this.renderer.setPixelRatio(Math.min(2, globalThis.devicePixelRatio || 1));
+    this.renderer.localClippingEnabled = true;
+    this.renderer.setClearColor(new Color(0x1d2026));
+    this.scene = new Scene();
+    this.root = new Group();
+    this.scene.add(this.root);
+    this.camera = new OrthographicCamera(-1, 1, 1, -1, -1e5, 1e5);
+    const headlight = new DirectionalLight(0xffffff, 2.2);
+    headlight.position.set(0.3, 0.5, 1);
+    this.camera.add(headlight);
+    this.scene.add(this.camera, new HemisphereLight(0xffffff, 0x666666, 1.3));
+    this.controls = new OrbitControls(this.camera, canvas);
+    this.controls.addEventListener('change', () => this.requestRender());
+    this.uniforms = { uOriented: { value: 0 }, uOrientedExponent: { value: 0.7 } };
+    this.plane = new Plane(new Vector3(0, 0, -1), 0);
+    this.clipping = null;           // {axis, fraction, flip} or null
+    this.showDistance = false;
+    this.level = -1;                // the finest level of detail arrived so far
+    this.geometries = new Map();    // geometry id → BufferGeometry, of that level
+    this.items = [];                // per structure of the current model
+    this.frameQueued = false;
+    this.firstFrame = null;         // resolve function until the first picture is drawn
+    new ResizeObserver(() => this.resize()).observe(canvas);
+  }
+
+  /** Show model `m` of the scene (structures share geometries by id). */
+  setModel(m) {
+    for (const it of this.items) this.root.remove(it.front, it.back);
+    this.model = this.data.models[m];
+    this.items = this.model.structures.map((s) => this.makeItem(s));
+    this.showDistance = this.showDistance && !!this.model.distance;
+    this.refreshMaterials();
+  }
+
+  makeItem(s) {
+    const color = new Color().setRGB(s.color[0], s.color[1], s.color[2], SRGBColorSpace);
+    const make = (side) => {
+      const mat = new MeshStandardMaterial({ color, roughness: 0.55, metalness: 0, side });
+      addOrientedAlpha(mat, this.uniforms);
+      const mesh = new Mesh(this.geometries.get(s.geometry[this.level]) || new BufferGeometry(), mat);
+      mesh.userData.structure = s;
+      this.root.add(mesh);
+      return mesh;
+    };
+    return { s, color, visible: s.visible !== false, opacity: s.opacity ?? 1,
+      front: make(FrontSide), back: make(BackSide) };
+  }
+
+  /** Level `k` arrived: `decoded` maps geometry id → arrays (data.js); its geometries replace
+   *  the coarser ones. */
+  addLevel(k, decoded) {
+    const old = this.geometries;
+    this.geometries = new Map([...decoded].map(([id, arrays]) => [id, geometryOf(arrays)]));
+    this.level = k;
+    for (const it of this.items) {
+      const g = this.geometries.get(it.s.geometry[k]);
+      if (g) it.front.geometry = it.back.geometry = g;
+    }
+    for (const g of old.values()) g.dispose();
+    this.refreshMaterials();
+  }
+
+  /** The model's box (display frame, mm, full detail): {min: [x, y, z], max: [x, y, z]}. */
+  bounds() {
+    return this.model.box;
+  }
+
+  /** Front view of everything (patient facing the viewer, head up), whole scene in the frame. */
+  resetView() {
+    const b = this.bounds();
+    const c = b.min.map((lo, k) => (lo + b.max[k]) / 2);
+    const size = Math.max(...b.max.map((hi, k) => hi - b.min[k]));
+    this.fit = { w: b.max[0] - b.min[0], h: b.max[1] - b.min[1] };  // the front view's extent
+    this.controls.target.set(...c);
+    this.camera.position.set(c[0], c[1], c[2] + 2 * size);
+    this.camera.up.set(0, 1, 0);
+    this.camera.zoom = 1;
+    this.resize();
+    this.controls.update();
+  }
+
+  resize() {
+    const canvas = this.renderer.domElement;
+    const w = canvas.clientWidth || 1;
+    const h = canvas.clientHeight || 1;
+    this.renderer.setSize(w, h, false);
+    const fit = this.fit || { w: 200, h: 200 };
+    const e = 0.56 * Math.max(fit.h, fit.w * h / w, 1);  // half height: all in view, 12 % margin
+    Object.assign(this.camera, { left: -e * w / h, right: e * w / h, top: e, bottom: -e });
+    this.camera.updateProjectionMatrix();
+    this.requestRender();
+  }
+
+  /** Materials after a change of visibility, opacity, clipping or colour mode. */
+  refreshMaterials() {
+    const planes = this.clipping ? [this.plane] : [];
+    if (this.clipping) {
+      const p = clipPlane(this.clipping.axis, this.clipping.fraction, this.bounds(), this.clipping.flip);
+      this.plane.normal.set(...p.normal);
+      this.plane.constant = p.constant;
+    }
+    for (const it of this.items) {
+      const seeThrough = it.opacity < 1;
+      const colors = this.showDistance && !!it.front.geometry.getAttribute('color');
+      for (const mesh of [it.front, it.back]) {
+        const m = mesh.material;
+        if (m.vertexColors !== colors || m.transparent !== seeThrough) m.needsUpdate = true;
+        m.vertexColors = colors;
+        m.color.copy(colors ? new Color(1, 1, 1) : it.color);
+        m.transparent = seeThrough;
+        m.opacity = it.opacity;
+        m.depthWrite = !seeThrough;
+        m.clippingPlanes = planes;
+      }
+      it.front.visible = it.visible && it.opacity > 0;
+      it.back.visible = it.front.visible && (seeThrough || !!this.clipping);
+    }
+    this.requestRender();
+  }
+
+  /** Draw order of the see-through structures for the current view (view-math.js drawOrder). */
+  sortTransparent() {
+    for (const it of this.items) it.front.renderOrder = it.back.renderOrder = 0;  // opaque: by depth
+    const see = this.items.filter((it) => it.front.visible && it.front.material.transparent);
+    const dir = new Vector3();
+    this.camera.getWorldDirection(dir);
+    const items = see.map((it) => {
+      const s = it.front.geometry.boundingSphere;
+      return { depth: s ? s.center.clone().sub(this.camera.position).dot(dir) : 0, radius: s ? s.radius : 0 };
+    });
+    drawOrder(items).forEach(({ index, side }, k) => {
+      see[index][side].renderOrder = k + 1;
+    });
+  }
+
+  requestRender() {
+    if (this.frameQueued || this.level < 0) return;  // nothing to show before the first level
+    this.frameQueued = true;
+    requestAnimationFrame(() => {
+      this.frameQueued = false;
+      this.sortTransparent();
+      this.renderer.render(this.scene, this.camera);
+      this.onChange();
+    });
+  }
+
+  /** Pixels per millimetre on screen (orthographic: the same at every depth). */
+  pxPerMm() {
+    const h = this.renderer.domElement.clientHeight || 1;
+    return h * this.camera.zoom / (this.camera.top - this.camera.bottom);
+  }
+
+  scaleBar(targetPx = 100) { return scaleBar(this.pxPerMm(), targetPx); }
+
+  /** The structure under the pixel (x, y) of the canvas (CSS px), or null. */
+  pick(x, y) {
+    const canvas = this.renderer.domElement;
+    const ndc = new Vector2(2 * x / canvas.clientWidth - 1, 1 - 2 * y / canvas.clientHeight);
+    const ray = new Raycaster();
+    ray.setFromCamera(ndc, this.camera);
+    const shown = this.items.filter((it) => it.front.visible).map((it) => it.front);
+    const hits = ray.intersectObjects(shown, false)
+      .filter((h) => !this.clipping || this.plane.distanceToPoint(h.point) >= 0)
+      .map((h) => ({ item: this.items.find((it) => it.front === h.object), distance: h.distance }))
+      .map((h) => ({ ...h, opacity: h.item.opacity }));
+    const hit = choosePick(hits);
+    return hit ? hit.item.s : null;
+  }
+
+  /** The picture as drawn now (tests): {width, height, rgba: Uint8Array, rows bottom up}. */
+  readPixels() {
+    this.sortTransparent();
+    this.renderer.render(this.scene, this.camera);
+    const gl = this.renderer.getContext();
+    const [w, h] = [gl.drawingBufferWidth, gl.drawingBufferHeight];
+    const rgba = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, rgba);
+    return { width: w, height: h, rgba };
+  }
+
+  /** Bounding rectangle on the canvas (CSS px) of a structure's vertices: {x0, y0, x1, y1}. */
+  screenBox(name) {
+    const it = this.items.find((i) => i.s.name === name);
+    const pos = it && it.front.geometry.getAttribute('position');
+    if (!pos) return null;
+    const canvas = this.renderer.domElement;
+    const v = new Vector3();
+    const r = { x0: Infinity, y0: Infinity, x1: -Infinity, y1: -Infinity };
+    for (let k = 0; k < pos.count; k++) {
+      v.fromBufferAttribute(pos, k).project(this.camera);
+      const x = (v.x + 1) / 2 * canvas.clientWidth;
+      const y = (1 - v.y) / 2 * canvas.clientHeight;
+      r.x0 = Math.min(r.x0, x); r.x1 = Math.max(r.x1, x);
+      r.y0 = Math.min(r.y0, y); r.y1 = Math.max(r.y1, y);
+    }
+    return r;
+  }
+}
