@@ -21,6 +21,16 @@ if ! command -v admesh >/dev/null 2>&1 || ! command -v prusa-slicer >/dev/null 2
     echo "note: admesh/prusa-slicer missing (install as root: apt-get install admesh prusa-slicer); tests/test_slicers.py will skip" >&2
   fi
 fi
+# DICOM validator for the Encapsulated STL write-back test (tests/core/export/test_dicom_stl.py; skipped when absent)
+if ! command -v dciodvfy >/dev/null 2>&1; then
+  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends dicom3tools \
+      || (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends dicom3tools) \
+      || echo "warning: could not install dicom3tools; the dciodvfy test will skip" >&2
+  else
+    echo "note: dciodvfy missing (install as root: apt-get install dicom3tools); its test will skip" >&2
+  fi
+fi
 if [ -z "$PY" ]; then
   echo "error: Python 3.11 is needed (bpy 5.0.1 is built for it): sudo apt-get install python3.11 python3.11-venv" >&2
   exit 2

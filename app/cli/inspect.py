@@ -27,7 +27,7 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 def cmd_inspect(args) -> int:
     vol = load(path_arg(args.path), series=args.series, volume_index=args.volume_index,
-               labels=args.label_table, progress=TerminalProgress("reading"))
+               labels=args.label_table, grid=args.grid, progress=TerminalProgress("reading"))
     facts = describe(vol)
     facts["path"] = [str(p) for p in args.path] if len(args.path) > 1 else str(args.path[0])
     print(json.dumps(facts, indent=2) if args.json else format_text(facts))

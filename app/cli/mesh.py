@@ -19,7 +19,8 @@ from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_arg
 RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
                 "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
                 "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
-                "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance")
+                "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance",
+                "grid", "contours")
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -44,9 +45,13 @@ def _surface_args(m) -> None:
     m.add_argument("--level", type=float, action="append", metavar="VALUE",
                    help="isovalue for a scalar scan (repeat for several surfaces)")
     m.add_argument("--labels", help="all (default), or values/names: 1,5,7 or liver,spleen")
-    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, glb, blend, png (default stl); "
+    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, dicom, glb, blend, png (default stl); "
+                                    "dicom writes one Encapsulated STL object per surface in the source's study; "
                                     "3mf also writes one combined print file, glb one file with every "
                                     "surface, blend a Blender scene, png its Cycles render (need bpy)")
+    m.add_argument("--contours", choices=("raster", "tile"),
+                   help="RTSTRUCT contours to surfaces: raster (default: even-odd rasterisation, shape-based "
+                        "interpolation, conforming extraction) or tile (direct tiling between adjacent contours)")
     m.add_argument("--space", choices=("RAS", "LPS"),
                    help="coordinate space of the written vertices (default RAS)")
     m.add_argument("--no-cap", dest="cap", action="store_false", default=None,
