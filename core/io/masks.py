@@ -45,9 +45,22 @@ def mask_files(path_or_paths) -> Optional[List[Path]]:
     p = Path(path_or_paths)
     if not p.is_dir():
         return None
-    files = sorted(q for q in p.iterdir() if q.is_file() and not q.name.startswith(".")
-                   and q.name.lower().endswith(MASK_SUFFIXES))
-    return files or None
+    entries = [q for q in p.iterdir() if not q.name.startswith(".")]
+    files = sorted(q for q in entries if q.is_file() and q.name.lower().endswith(MASK_SUFFIXES))
+    if not files or any(q.is_file() and _is_dicom(q) for q in entries):
+        return None  # a DICOM folder (perhaps with a reference mask beside it)
+    return files
+
+
+def _is_dicom(q: Path) -> bool:
+    if q.suffix.lower() in (".dcm", ".dicom", ".ima"):
+        return True
+    try:
+        with open(q, "rb") as fh:
+            head = fh.read(132)
+    except OSError:
+        return False
+    return head[128:132] == b"DICM"
 
 
 def structure_name(path: Path) -> str:

@@ -248,3 +248,23 @@ def stack_surface_sets(sets: Sequence["SurfaceSet"]) -> "SurfaceSet":
                       sets[0].space, dict(sorted(labels.items())), np.concatenate(splits),
                       sets[0].background, counts, warnings,
                       {k: v for s in sets for k, v in s.shell_values.items()})
+
+
+@dataclass
+class RoiContours:
+    """One RT structure's closed planar contours, as read (DICOM RTSTRUCT, LPS mm).
+
+    ``contours``: list of (n, 3) float64 point arrays (the last point joins the first);
+    ``planes``: (len(contours),) int, the index of each contour's plane in the stack;
+    ``normal`` (3,): the stack's unit normal; ``plane_t``: (P,) position of plane p along it (mm),
+    ascending. ``source`` names the file for messages."""
+
+    info: LabelInfo
+    contours: List[np.ndarray]
+    planes: np.ndarray
+    normal: np.ndarray
+    plane_t: np.ndarray
+    source: str = ""
+
+    def on_plane(self, p: int) -> List[np.ndarray]:
+        return [c for c, q in zip(self.contours, self.planes) if q == p]
