@@ -25,7 +25,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.segmentation import Mask, RoiContours, crop_mask
+from ..model.segmentation import Mask, RoiContours, crop_mask, in_plane_axes
 from . import _contour_kernels as K
 
 #: contour planes further than this from the slice lattice (fraction of the step) are off-plane
@@ -173,13 +173,3 @@ def _box(masks: List[np.ndarray]):
     # one pixel of margin so interpolated planes may grow a little past the contour planes' union
     return ((max(0, ii[0] - 1), min(any2d.shape[0], ii[-1] + 2)),
             (max(0, jj[0] - 1), min(any2d.shape[1], jj[-1] + 2)))
-
-
-def in_plane_axes(normal: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """Unit in-plane axes (u, v) with u × v = normal; u is the patient x axis projected into the
-    plane (or y when x is along the normal)."""
-    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
-    x = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = x - (x @ n) * n
-    u /= np.linalg.norm(u)
-    return u, np.cross(n, u)

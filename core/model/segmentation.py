@@ -268,3 +268,13 @@ class RoiContours:
 
     def on_plane(self, p: int) -> List[np.ndarray]:
         return [c for c, q in zip(self.contours, self.planes) if q == p]
+
+
+def in_plane_axes(normal: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Unit in-plane axes (u, v) with u × v = normal; u is the patient x axis projected into the
+    plane (or y when x is along the normal)."""
+    n = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+    x = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = x - (x @ n) * n
+    u /= np.linalg.norm(u)
+    return u, np.cross(n, u)
