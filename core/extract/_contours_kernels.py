@@ -23,7 +23,8 @@ def band_dp(a, b):
     (n, 3), both starting at corresponding points and running the same way (Fuchs, Kedem &
     Uselton 1977, "Optimal surface reconstruction from planar contours", with the start pair
     fixed). Returns (m + n, 3) int64 triangles: index i < m is a[i], m + j is b[j]; each triangle
-    advances one step along a (a_i, a_i+1, b_j) or along b (a_i, b_j+1, b_j)."""
+    advances one step along a (a_i, a_i+1, b_j) or along b (a_i, b_j+1, b_j). The paths through
+    (0, n) and (m, 0) are excluded: they would use the start rung (a_0, b_0) four times."""
     m, n = a.shape[0], b.shape[0]
     cost = np.full((m + 1, n + 1), np.inf)
     move = np.zeros((m + 1, n + 1), np.uint8)
@@ -43,6 +44,8 @@ def band_dp(a, b):
                 if c < best:
                     best = c
                     move[i, j] = 2
+            if (i == 0 and j == n) or (i == m and j == 0):
+                best = np.inf  # one point fanned to a whole contour: the start rung would repeat
             cost[i, j] = best
     out = np.empty((m + n, 3), np.int64)
     i, j, t = m, n, m + n - 1

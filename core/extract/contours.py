@@ -68,18 +68,40 @@ def tile_roi(roi: RoiContours, space: str = "LPS") -> Mesh:
     for loops in planes.values():
         _nest(loops)
     verts = np.concatenate(vertices)
-    faces, up, down = [], set(), set()
+    faces, up, down, used = [], set(), set(), set()
     for p in sorted(planes):
         if p + 1 in planes:
-            faces += _bands(planes[p], planes[p + 1], verts, up, down)
+            faces += _bands(planes[p], planes[p + 1], verts, up, down, used)
+    step = float(np.median(np.diff(roi.plane_t))) if len(roi.plane_t) > 1 else 1.0
+    extra = []
     for p, loops in planes.items():
-        faces += _caps(loops, verts, [k for k in range(len(loops)) if (p, k) not in up], top=True)
-        faces += _caps(loops, verts, [k for k in range(len(loops)) if (p, k) not in down], top=False)
+        alone = {k for k in range(len(loops)) if (p, k) not in up and (p, k) not in down}
+        faces += _caps(loops, verts, [k for k in range(len(loops)) if (p, k) not in up and k not in alone], top=True)
+        faces += _caps(loops, verts, [k for k in range(len(loops)) if (p, k) not in down and k not in alone], top=False)
+        for k in sorted(alone):
+            base = np.concatenate([verts] + extra)
+            f, v = _slab(loops[k], base, roi.normal * step / 2, len(base))
+            faces += f
+            extra.append(v)
+    verts = np.concatenate([verts] + extra)
     tris = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
     if space != "LPS":
         verts = verts @ space_flip("LPS", space)[:3, :3].T
     return Mesh(verts.astype(np.float32), tris.astype(np.int32), name=roi.info.name,
                 value=roi.info.value, color=tuple(roi.info.color), space=space)
+
+
+def _slab(loop: _Loop, verts, half: np.ndarray, first: int):
+    """A contour alone on its plane (no partner on either side) as a prism half a plane step
+    thick on each side, its contour points the middle belt: (faces, new vertices)."""
+    n = len(loop.ids)
+    lo, hi = first + np.arange(n), first + n + np.arange(n)
+    new = np.concatenate([verts[loop.ids] - half, verts[loop.ids] + half])
+    below = _band(np.asarray(lo), np.asarray(loop.ids), np.concatenate([verts, new]))
+    above = _band(np.asarray(loop.ids), np.asarray(hi), np.concatenate([verts, new]))
+    top = _triangulate(_Loop(hi, loop.uv, loop.plane), [])
+    bottom = _triangulate(_Loop(lo, loop.uv, loop.plane), [])[:, ::-1]
+    return [below, above, top, bottom], new
 
 
 def _signed_area(uv: np.ndarray) -> float:
@@ -117,7 +139,7 @@ def _overlap(a: _Loop, b: _Loop) -> bool:
     return False
 
 
-def _bands(lower: List[_Loop], upper: List[_Loop], verts, up: set, down: set) -> List[np.ndarray]:
+def _bands(lower: List[_Loop], upper: List[_Loop], verts, up: set, down: set, used: set) -> List[np.ndarray]:
     """Tile every group of overlapping contours between two adjacent planes (same kind only)."""
     out = []
     for hole in (False, True):
@@ -125,9 +147,9 @@ def _bands(lower: List[_Loop], upper: List[_Loop], verts, up: set, down: set) ->
         b = [k for k, lp in enumerate(upper) if lp.hole == hole]
         links = [(i, j) for i in a for j in b if _overlap(lower[i], upper[j])]
         for ga, gb in _groups(links):
-            ca = _composite([lower[i] for i in ga], verts)
-            cb = _composite([upper[j] for j in gb], verts)
-            out.append(_band(ca, cb, verts))
+            ca, pa = _composite([lower[i] for i in ga], verts, used)
+            cb, pb = _composite([upper[j] for j in gb], verts, used)
+            out += [_band(ca, cb, verts)] + _patch_faces(pa, True) + _patch_faces(pb, False)
             up.update((lower[i].plane, i) for i in ga)
             down.update((upper[j].plane, j) for j in gb)
     return out
@@ -153,32 +175,69 @@ def _groups(links) -> List[tuple]:
     return [(sorted(a), sorted(b)) for a, b in comps.values()]
 
 
-def _composite(loops: List[_Loop], verts) -> np.ndarray:
-    """One vertex-id sequence through several contours joined at their closest points."""
+def _composite(loops: List[_Loop], verts, used: set):
+    """One vertex-id sequence through several contours, and the bridge patches joining them.
+
+    Contour N is spliced into the sequence S at their closest points S[a], N[b]:
+    ``S[..a], N[b], N[b+1], ..., N[b-1], S[a+1..]``; the two bridges (S[a], N[b]) and
+    (N[b-1], S[a+1]) and the contour edges they skip bound a flat quad in the plane, returned as
+    a patch ``(S[a], S[a+1], N[b], N[b-1])`` to be triangulated with the band's orientation.
+    Bridges already used on the loops' other side are avoided (an edge gets two triangles)."""
     seq = loops[0].ids
-    rest = list(loops[1:])
+    rest, patches = list(loops[1:]), []
     while rest:
         pts = verts[seq]
         best = None
         for r, lp in enumerate(rest):
             d = np.linalg.norm(pts[:, None, :] - verts[lp.ids][None, :, :], axis=2)
+            nxt, prv = np.roll(seq, -1), np.roll(lp.ids, 1)
+            for x, y in used:
+                d[np.ix_(np.flatnonzero(seq == x), np.flatnonzero(lp.ids == y))] = np.inf
+                d[np.ix_(np.flatnonzero(nxt == x), np.flatnonzero(prv == y))] = np.inf
+                d[np.ix_(np.flatnonzero(nxt == x), np.flatnonzero(lp.ids == y))] = np.inf
             a, b = np.unravel_index(int(np.argmin(d)), d.shape)
             if best is None or d[a, b] < best[0]:
                 best = (d[a, b], r, a, b)
         _, r, a, b = best
-        ids = rest.pop(r).ids
-        seq = np.concatenate([seq[:a + 1], np.roll(ids, -b), ids[b:b + 1], seq[a:]])
-    return seq
+        ids = np.roll(rest.pop(r).ids, -b)
+        patch = (int(seq[a]), int(seq[(a + 1) % len(seq)]), int(ids[0]), int(ids[-1]))
+        used.update({(patch[0], patch[2]), (patch[1], patch[3]), (patch[1], patch[2])})
+        patches.append(patch)
+        seq = np.concatenate([seq[:a + 1], ids, seq[a + 1:]])
+    return seq, patches
+
+
+def _patch_faces(patches, lower: bool) -> List[np.ndarray]:
+    """Triangles of the bridge quads (S[a], S[a+1], N[b], N[b-1]); on the lower side of a band
+    they use the composite's edges against its direction, on the upper side along it."""
+    out = []
+    for sa, sa1, nb, nb1 in patches:
+        tri = np.array([[nb, sa, sa1], [nb, sa1, nb1]], np.int64)
+        out.append(tri if lower else tri[:, ::-1])
+    return out
 
 
 def _band(ca: np.ndarray, cb: np.ndarray, verts) -> np.ndarray:
-    """Minimum-area band between two id sequences, started at ca[0] and its closest point of cb."""
-    pa, pb = verts[ca], verts[cb]
-    start = int(np.argmin(np.linalg.norm(pb - pa[0], axis=1)))
-    cb = np.roll(cb, -start)
-    local = K.band_dp(np.ascontiguousarray(pa), np.ascontiguousarray(verts[cb]))
-    ids = np.concatenate([ca, cb])
-    return ids[local]
+    """Minimum-area band between two id sequences, started at ca[0] and its closest point of cb.
+    A band that fans one point over a whole contour (an edge used four times) is tiled again
+    from other start pairs."""
+    pa = np.ascontiguousarray(verts[ca])
+    start = int(np.argmin(np.linalg.norm(verts[cb] - pa[0], axis=1)))
+    best = None
+    for shift in (0, len(cb) // 2, len(cb) // 4, 3 * len(cb) // 4):
+        rolled = np.roll(cb, -(start + shift))
+        local = K.band_dp(pa, np.ascontiguousarray(verts[rolled]))
+        tris = np.concatenate([ca, rolled])[local]
+        if best is None:
+            best = tris
+        if not _overused(tris):
+            return tris
+    return best
+
+
+def _overused(tris: np.ndarray) -> bool:
+    e = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+    return bool(np.unique(e, axis=0, return_counts=True)[1].max(initial=0) > 2)
 
 
 def _caps(loops: List[_Loop], verts, open_loops: List[int], top: bool) -> List[np.ndarray]:
