@@ -49,8 +49,9 @@ def build_report(result: "Result") -> Dict:
     out["files"].update(report=relative(p.report, base), recipe=relative(p.recipe, base))
     if "layers" in facts:  # segmentations (issue 14): overlapping structures, one layer each
         out["layers"], out["overlaps"] = facts["layers"], facts["overlaps"]
+    out["notes"] = list(facts["meta"].get("notes") or [])
     if p.dicom_reference and p.dicom_reference.get("note"):
-        out.setdefault("notes", []).append(p.dicom_reference["note"])
+        out["notes"].append(p.dicom_reference["note"])
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)

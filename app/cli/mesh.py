@@ -142,6 +142,8 @@ def cmd_mesh(args) -> int:
     recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"))
     rep = result.report
+    for note in rep.get("notes", []):  # segmentations (issue 14): what was meshed, on which grid
+        print(f"note: {note}", file=sys.stderr)
     for w in rep.get("warnings", []):
         print(f"warning: {w}", file=sys.stderr)
     n_closed = sum(1 for s in rep["surfaces"] if s["closed"])

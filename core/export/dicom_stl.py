@@ -80,6 +80,7 @@ def encapsulated_stl(mesh: Mesh, reference: Dict, instance: int = 1,
     ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
     for key in COPIED:  # Patient, General Study (type 2: present, maybe empty)
         setattr(ds, key, reference.get(key, ""))
+    ds.StudyID = str(ds.StudyID)[:16]  # SH: some sources carry longer values
     ds.Modality = "M3D"  # Encapsulated Document Series
     ds.SeriesInstanceUID = reference["SeriesInstanceUID_out"]
     ds.SeriesNumber = int(reference.get("SeriesNumber_out", 9001))
@@ -106,6 +107,11 @@ def encapsulated_stl(mesh: Mesh, reference: Dict, instance: int = 1,
         src.ReferencedSOPClassUID = reference["SourceSOPClassUID"]
         src.ReferencedSOPInstanceUID = reference["SourceSOPInstanceUID"]
         ds.SourceInstanceSequence = [src]
+        if reference.get("SourceSeriesInstanceUID"):  # Common Instance Reference module
+            series = Dataset()
+            series.SeriesInstanceUID = reference["SourceSeriesInstanceUID"]
+            series.ReferencedInstanceSequence = [src]
+            ds.ReferencedSeriesSequence = [series]
     ds.is_little_endian, ds.is_implicit_VR = True, False
     return ds
 

@@ -127,7 +127,7 @@ def listing(scan) -> List[Dict]:
         kind = segmentation_kind(ds)
         out.append({"number": len(out) + 1, "kind": kind, "uid": text_of(ds, "SOPInstanceUID"),
                     "series_uid": text_of(ds, "SeriesInstanceUID"), "path": str(path),
-                    "description": _object_label(ds, kind)})
+                    "description": f"{path.name}: {_object_label(ds, kind)}"})
     return out
 
 
@@ -263,4 +263,5 @@ def dicom_reference(ds, image_header=None) -> Dict:
             out[k] = out[k] or text_of(image_header, k)
     out["SourceSOPClassUID"] = text_of(ds, "SOPClassUID")
     out["SourceSOPInstanceUID"] = text_of(ds, "SOPInstanceUID")
+    out["SourceSeriesInstanceUID"] = text_of(ds, "SeriesInstanceUID")
     return out
