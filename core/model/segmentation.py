@@ -108,6 +108,16 @@ class Segmentation:
             out.update(layer.labels or {})
         return dict(sorted(out.items()))
 
+    @property
+    def is_label_map(self) -> bool:
+        return True
+
+    def orientation(self) -> str:
+        return self.layers[0].orientation()
+
+    def voxel_volume_mm3(self) -> float:
+        return self.layers[0].voxel_volume_mm3()
+
     def in_space(self, space: str) -> "Segmentation":
         """The same segmentation with every layer's affine in ``space`` (data shared)."""
         return Segmentation([v.in_space(space) for v in self.layers], list(self.overlaps),
