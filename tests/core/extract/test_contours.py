@@ -157,3 +157,19 @@ def test_oblique_stack_tiles_and_rasterises():
     grid = contour_grid([roi], None, pixel_mm=0.5)
     mask = rasterise_roi(roi, grid)
     assert abs(mask.voxels * abs(np.linalg.det(grid.affine[:3, :3])) - truth) / truth < 0.02
+
+
+def test_single_contour_roi_is_a_closed_slab_both_ways():
+    """One contour alone: tiling gives a closed prism one plane step thick around it; the raster
+    gives the voxels of its plane."""
+    c = circle(0, 0, 8.0, 4.0)
+    roi = roi_of([c])
+    m = tile_roi(roi)
+    _check_closed(m, 0)
+    area = 0.5 * N * 64.0 * math.sin(2 * math.pi / N)
+    assert signed_volume(m.vertices, m.faces) == pytest.approx(area * 1.0, rel=1e-3)
+    assert np.isclose(m.vertices[:, 2], 4.0).sum() == N  # the contour itself is the middle belt
+    grid = contour_grid([roi], None, pixel_mm=0.5)
+    mask = rasterise_roi(roi, grid)
+    assert mask.data.shape[2] == 1
+    assert abs(mask.voxels * 0.25 - area) / area < 0.02
