@@ -19,9 +19,8 @@ Overlapping masks become separate layers (:mod:`anatomesh.core.model.segmentatio
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 

@@ -3,7 +3,6 @@ and frame of reference, every required attribute present, the STL exact in LPS m
 Debian's dicom3tools is installed) dciodvfy finds no error."""
 from __future__ import annotations
 
-import io
 import shutil
 import subprocess
 
