@@ -113,7 +113,7 @@ def list_series(path_or_paths: Union[PathLike, Sequence[PathLike]],
 
 
 def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
-               progress: Optional[Progress] = None) -> Volume:
+               progress: Optional[Progress] = None, scan=None) -> Volume:
     """Read one DICOM image series into an LPS :class:`Volume` (see the module docstring).
 
     Parameters
@@ -135,7 +135,7 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
         units, rescale, transfer_syntax, window_center/width, source, n_files, slice_spacing
         (no patient data); ``warnings`` for problems that did not stop the reading.
     """
-    scan = _scan(path_or_paths, sub(progress, 0.0, 0.3))
+    scan = scan or _scan(path_or_paths, sub(progress, 0.0, 0.3))  # scan: from scan_dicom, if done
     info, headers = _choose(scan, series)
     order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
     files = [info.files[i] for i in order]
@@ -170,9 +170,8 @@ def _scan(path_or_paths, progress) -> _Scan:
     objects: List[Tuple[Path, object]] = []
     for n, path in enumerate(files):
         ds, kind = _read_header(path)
-        if ds is not None and segmentation_kind(ds):  # DICOM SEG / RTSTRUCT: kept apart
+        if ds is not None and segmentation_kind(ds):  # DICOM SEG / RTSTRUCT: kept apart (and noted)
             objects.append((path, ds))
-            continue
         if ds is not None:
             kind = _object_kind(ds, path)
         if kind:

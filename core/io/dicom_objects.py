@@ -64,12 +64,12 @@ def read_dicom_any(path, series=None, grid: Optional[str] = None, progress: Opti
         return read_object(Path(path), ds, kind, scan, grid, [], progress)
     scan = scan_dicom(path, sub(progress, 0.0, 0.3))
     if not scan.objects:
-        return _with_series_reference(read_dicom(path, series=series, progress=progress), scan)
+        return _with_series_reference(read_dicom(path, series=series, progress=progress, scan=scan), scan)
     _check_one_study(scan)
     entries = listing(scan)
     pick = _pick(entries, series, scan.source)
     if pick["kind"] == "image":
-        vol = read_dicom(path, series=str(pick["series_index"]), progress=progress)
+        vol = read_dicom(path, series=str(pick["series_index"]), progress=progress, scan=scan)
         return _with_series_reference(vol, scan)
     notes = []
     if series is None:
