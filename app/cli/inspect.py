@@ -64,8 +64,6 @@ def _segmentation_lines(facts: Dict) -> List[str]:
         lines.append(f"note         {note}")
     if meta.get("grid"):
         lines.append(f"grid         {meta['grid']}")
-    for r in meta.get("resampled") or []:
-        lines.append(f"resampled    {r['name']}: {r['how']} (from {'x'.join(map(str, r['from_shape']))})")
     for layer in facts.get("layers", []):
         lines.append(f"layer {layer['layer']}      {', '.join(layer['structures'])}")
     for o in facts.get("overlaps", []):

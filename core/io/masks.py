@@ -125,7 +125,9 @@ def read_masks(files: Sequence[Path], grid: Optional[str] = None, space: Optiona
     report(progress, 0.95, "sorting structures into layers")
     meta = {"format": "masks", "source": str(source), "structures": len(placed),
             "image": str(files[0].parent / image.meta["source_name"]) if image is not None else None,
-            "grid": grid_note, "resampled": resampled, "modality": "segmentation"}
+            "grid": grid_note, "resampled": resampled, "modality": "segmentation",
+            "notes": [f"{r['name']} ({'x'.join(map(str, r['from_shape']))} voxels): {r['how']} onto "
+                      f"{grid_note}" for r in resampled]}
     out = segmentation_from_masks(placed, shape, target, space, meta, warnings)
     report(progress, 1.0, "masks read")
     return out
