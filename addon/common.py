@@ -73,14 +73,16 @@ def abspath(path: str) -> str:
     return os.path.normpath(bpy.path.abspath(path)) if path else ""
 
 
-def load_volume(filepath: str, series: str = "", label_table: str = "", space: str = "RAS", progress=None):
-    """core.load with a small cache (re-extracting the same scan does not read it again)."""
+def load_volume(filepath: str, series: str = "", label_table: str = "", space: str = "RAS", progress=None,
+                grid: str = ""):
+    """core.load with a small cache (re-extracting the same scan does not read it again). Mask
+    folders, DICOM SEG and RTSTRUCT may give a Segmentation (overlapping structures as layers)."""
     from ..core import load
 
-    key = (abspath(filepath), series or None, abspath(label_table) or None, space)
+    key = (abspath(filepath), series or None, abspath(label_table) or None, space, grid or None)
     vol = _VOLUMES.get(key)
     if vol is None:
-        vol = load(key[0], series=key[1], labels=key[2], space=space, progress=progress)
+        vol = load(key[0], series=key[1], labels=key[2], space=space, grid=key[4], progress=progress)
         _VOLUMES[key] = vol
         while len(_VOLUMES) > _MAX_VOLUMES:
             _VOLUMES.popitem(last=False)

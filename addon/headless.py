@@ -102,6 +102,7 @@ def result_to_scene(context, result) -> bpy.types.Collection:
             surface.lattice = None  # decimated vertices left their voxel corners: box around them
     warnings = list(result.volume.warnings) + list(getattr(sset, "warnings", []) or [])
     coll = scan.scan_to_scene(context, result.volume, items, surface, warnings)
+    scan.group_layers(coll, result.volume)  # overlapping structures: one child collection per layer
     live.set_scan_settings(coll, smooth_iterations=0)  # the pipeline smoothed already
     recipe = getattr(result, "recipe", None)
     if recipe is not None:

@@ -25,9 +25,10 @@ def fill_lists(settings, volume) -> None:
     settings.info = f"{shape} voxels, {spacing} mm, {volume.orientation()} ({volume.space})"
     if volume.is_label_map:
         from ..core.io.describe import label_facts
+        from ..core.model.segmentation import as_layers
 
         settings.kind = "LABELS"
-        for fact in label_facts(volume):
+        for fact in (f for layer in as_layers(volume) for f in label_facts(layer)):
             if fact["voxels"] <= 0:
                 continue
             item = settings.labels.add()
@@ -55,11 +56,14 @@ def chosen_labels(settings, volume, text: str) -> List[Tuple[int, str, Tuple[flo
 
     rows = {item.value: item for item in settings.labels}
     table = volume.labels or {}
+    from ..core.model.segmentation import as_layers
+
     if text.strip().lower() == "all" or (not text.strip() and not rows):
-        present = np.unique(np.asarray(volume.data))
-        values = [int(v) for v in present if v != 0]
+        present = set().union(*(np.unique(np.asarray(layer.data)).tolist() for layer in as_layers(volume)))
+        values = sorted(int(v) for v in present if v != 0)
     elif text.strip():
-        values = select_labels(volume, parse_list(text))
+        values = select_labels(as_layers(volume)[0] if len(as_layers(volume)) == 1 else _names_only(volume),
+                               parse_list(text))
     else:
         values = [v for v, item in rows.items() if item.include]
     out = []
@@ -71,6 +75,14 @@ def chosen_labels(settings, volume, text: str) -> List[Tuple[int, str, Tuple[flo
         else:
             out.append((v, f"label_{v}", (0.8, 0.8, 0.8)))
     return out
+
+
+def _names_only(volume):
+    """A data-less label-map Volume holding every structure's name (to resolve a typed list)."""
+    from ..core.model.volume import Volume
+
+    first = volume.layers[0]
+    return Volume(first.data[:0, :0, :0], first.affine, first.space, dict(volume.meta), volume.labels)
 
 
 def chosen_levels(settings, text: str) -> List[Tuple[float, str, Tuple[float, float, float]]]:
@@ -141,8 +153,13 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
             raise AnatomeshError("no labels chosen; tick at least one label in the list",
                                  volume.meta.get("source"))
         from ..core.extract.multilabel import label_surfaces
+        from ..core.model.segmentation import as_layers, stack_surface_sets
 
-        sset = label_surfaces(volume, values=[v for v, _, _ in labels], progress=progress)
+        wanted = [v for v, _, _ in labels]
+        layer_sets = [label_surfaces(layer, values=[v for v in wanted if v in (layer.labels or {})] or None,
+                                     progress=progress) for layer in as_layers(volume)
+                      if any(v in (layer.labels or {}) for v in wanted) or len(as_layers(volume)) == 1]
+        sset = stack_surface_sets(layer_sets)
         shells = {int(round(float(m.value))): m for m in sset.shells()}
         surface = set_surface(sset)
         warnings += list(sset.warnings)
@@ -163,6 +180,7 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
             else:
                 warnings.append(f"isovalue {lv:g} ({name}) gives no surface: it is outside the data range")
     coll = scan_to_scene(context, volume, items, surface, warnings, render_method)
+    group_layers(coll, volume)
     if not _KERNELS_WARM:  # so the first slider move is as fast as the next
         if progress is not None:
             progress(1.0, "first run: compiling the live smoothing kernels once")
@@ -214,6 +232,28 @@ def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.Scan
     live.remember(coll, surface)
     context.scene.anatomesh.last_collection = coll.name
     return coll
+
+
+def group_layers(coll, volume) -> None:
+    """Overlapping structures (a Segmentation's layers): one child collection per layer,
+    "<scan> layer N", each object's ``anatomesh_layer`` set; a single layer stays as it is."""
+    from ..core.model.segmentation import Segmentation
+
+    if not isinstance(volume, Segmentation):
+        return
+    layer_of = volume.layer_of()
+    children = {}
+    for obj in list(coll.objects):
+        value = obj.get("anatomesh_value")
+        if value is None or int(value) not in layer_of:
+            continue
+        li = layer_of[int(value)]
+        obj["anatomesh_layer"] = li + 1
+        if li not in children:
+            children[li] = bpy.data.collections.new(f"{coll.name} layer {li + 1}")
+            coll.children.link(children[li])
+        children[li].objects.link(obj)
+        coll.objects.unlink(obj)
 
 
 def set_surface(sset) -> "live.ScanSurface":

@@ -1,7 +1,8 @@
 """The files of a run: where each goes, refusing to overwrite any, and writing them.
 
 Formats (``recipe.formats``), all in mm in the recipe's space: ``stl``, ``ply``, ``obj``, ``3mf``
-one file per surface; ``3mf`` also one combined print-ready ``<stem>.3mf`` (one object per part,
+one file per surface; ``dicom`` one DICOM Encapsulated STL object (``<name>.dcm``) per surface,
+in the study and frame of reference of a DICOM source (LPS mm, whatever ``space`` says); ``3mf`` also one combined print-ready ``<stem>.3mf`` (one object per part,
 colours); ``glb`` one ``<stem>.glb`` with every surface; ``blend`` a Blender file built by the
 add-on exactly as its Extract button would, ``png`` a Cycles render of that scene (both need
 Blender: the add-on provides the writer, see :func:`blender_writer`). ``<stem>`` is a slug of
@@ -22,7 +23,8 @@ from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from .recipe import RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
+from ..core.export.dicom_stl import dicom_reference, write_encapsulated_stl
+from .recipe import DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
 from .stages import clean
 from .web import page_paths, write_page
 from .web_models import model_of_run
@@ -30,6 +32,8 @@ from .web_models import model_of_run
 #: entry-point group through which the add-on offers its ``.blend``/PNG writer (pyproject.toml)
 BLENDER_ENTRY_POINTS = "anatomesh.blender"
 _BLENDER_WRITER: List[Callable] = []
+#: file suffix of a format when it is not the format's name
+FILE_SUFFIX = {DICOM_FORMAT: "dcm"}
 
 
 @dataclass
@@ -43,6 +47,7 @@ class Plan:
     recipe: Path
     stem: str = "scan"
     extra: List[Path] = field(default_factory=list)
+    dicom_reference: Optional[Dict] = None  # format "dicom": study/frame of reference of the source
 
     def all_paths(self) -> List[Path]:
         return ([p for fs in self.surfaces for p in fs.values()] + list(self.scene.values())
@@ -56,8 +61,8 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     report_path = Path(recipe.report) if recipe.report else out_dir / "report.json"
     stem = scan_stem(volume, recipe)
     stems = unique_stems([m.name for m in meshes], [m.value for m in meshes])
-    per_surface = [{fmt: out_dir / f"{s}.{fmt}" for fmt in recipe.formats if fmt in SURFACE_FORMATS}
-                   for s in stems]
+    per_surface = [{fmt: out_dir / f"{s}.{FILE_SUFFIX.get(fmt, fmt)}" for fmt in recipe.formats
+                    if fmt in SURFACE_FORMATS} for s in stems]
     taken = {p for fs in per_surface for p in fs.values()}
     name = stem if all(out_dir / f"{stem}.{f}" not in taken for f in ("3mf", "glb")) else f"{stem}_all"
     scene = {fmt: out_dir / f"{name}.{fmt}" for fmt in ("3mf",) + SCENE_ONLY_FORMATS
@@ -66,6 +71,8 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     p = Plan(per_surface, scene, lods, report_path, report_path.parent / RECIPE_FILE, stem)
     if WEB_FORMAT in recipe.formats:  # issue 16: the page's folder
         p.extra += page_paths(web_dir(recipe), recipe.web_levels)
+    if DICOM_FORMAT in recipe.formats:  # segmentations (issue 14): the study the objects join
+        p.dicom_reference = dicom_reference(volume)
     refuse_overwrite(p.all_paths(), recipe.overwrite)
     return p
 
@@ -87,7 +94,9 @@ def write_surfaces(meshes: List[Mesh], p: Plan, title: str, progress: Optional[P
     """Every per-surface file, then the combined 3MF and the GLB (not blend/png)."""
     for i, (m, fs) in enumerate(zip(meshes, p.surfaces)):
         for fmt, path in fs.items():
-            if fmt in SCENE_FORMATS:
+            if fmt == DICOM_FORMAT:
+                write_encapsulated_stl(m, path, p.dicom_reference or {}, instance=i + 1)
+            elif fmt in SCENE_FORMATS:
                 SCENE_FORMATS[fmt]([m], path, title=m.name)
             else:
                 write_mesh(m, path, fmt)

@@ -47,7 +47,7 @@ from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept
 #: per-surface formats, whole-scene formats, and the ones that need Blender (bpy)
-SURFACE_FORMATS = ("stl", "ply", "obj", "3mf")
+SURFACE_FORMATS = ("stl", "ply", "obj", "3mf", "dicom")
 SCENE_ONLY_FORMATS = ("glb", "blend", "png")
 #: the web page (issue 16): a folder (index.html + scripts), not one file
 WEB_FORMAT = "web"
@@ -56,6 +56,10 @@ BLENDER_FORMATS = ("blend", "png")
 STAIRCASE = ("auto", "on", "off")
 PROFILES = tuple(PRINTER_PROFILES)
 RECIPE_FILE = "recipe.toml"
+# segmentations (issue 14): DICOM write-back, RT contour methods
+DICOM_FORMAT = "dicom"
+CONTOURS_RASTER, CONTOURS_TILE = "raster", "tile"
+CONTOURS = (CONTOURS_RASTER, CONTOURS_TILE)
 
 
 @dataclass
@@ -82,6 +86,12 @@ class Recipe:
     ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
     so separately printed parts fit together (:mod:`anatomesh.core.printing.fixes`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
+    ``grid``: the grid structures of a mask folder are meshed on (a mask name or "image"; default the
+    finest), or for DICOM SEG/RTSTRUCT "image" (the referenced series) or "native" (the object's own
+    planes). ``contours``: RTSTRUCT contours to surfaces by "raster" (even-odd rasterisation + shape-based
+    interpolation, then the label-map flow) or "tile" (direct tiling between adjacent contours).
+    Format "dicom": each surface as a DICOM Encapsulated STL object in the source's study and frame of
+    reference (:mod:`anatomesh.core.export.dicom_stl`).
     ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
     ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
     every shell's topology), all from one progressive decimation run (:mod:`anatomesh.core.decimate.progressive`,
@@ -130,6 +140,9 @@ class Recipe:
     distance_to: Optional[Union[int, str]] = None
     margins: List[float] = field(default_factory=lambda: [2.0, 5.0, 10.0])
     web_levels: int = 2
+    # segmentations (issue 14)
+    grid: Optional[str] = None
+    contours: str = CONTOURS_RASTER
 
 
 def check_recipe(recipe: Recipe) -> None:
@@ -142,7 +155,7 @@ def check_recipe(recipe: Recipe) -> None:
         raise AnatomeshError(f"unknown --format {','.join(bad) or '(none)'}; use a comma list of "
                              f"{', '.join(FORMATS)}")
     for name, value, allowed in (("space", recipe.space, SPACES), ("staircase", recipe.staircase, STAIRCASE),
-                                 ("profile", recipe.profile, PROFILES)):
+                                 ("profile", recipe.profile, PROFILES), ("contours", recipe.contours, CONTOURS)):
         if value not in allowed:
             raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
     if not (isinstance(recipe.lod, int) and 0 <= recipe.lod <= 8):
@@ -173,7 +186,8 @@ def check_recipe(recipe: Recipe) -> None:
 #: TOML section → {TOML key: Recipe field}
 SECTIONS: Dict[str, Dict[str, str]] = {
     "input": {"path": "input", "series": "series", "volume": "volume_index",
-              "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space"},
+              "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space",
+              "grid": "grid", "contours": "contours"},
     "surfaces": {"cap": "cap", "keep_largest": "keep_largest", "min_component_mm3": "min_component_mm3"},
     "smoothing": {"method": "smooth", "iterations": "iterations", "lambda": "lam", "mu": "mu",
                   "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
@@ -189,14 +203,15 @@ SECTIONS["distance"] = {"to": "distance_to", "margins_mm": "margins"}
 SECTIONS["web"] = {"levels": "web_levels"}
 #: a comment written above each section
 _NOTES = {
-    "input": "scan or label map; labels: \"all\" or values/names; levels: isovalues of a scalar scan",
+    "input": "scan, label map, mask folder, DICOM SEG/RTSTRUCT; labels: \"all\" or values/names; levels: "
+             "isovalues of a scalar scan; grid: a mask name, \"image\" or \"native\"; contours: raster or tile",
     "surfaces": "isosurfaces capped at the volume's border; drop small components (mm3)",
     "smoothing": "method: organ, light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
                  "normal_median, none",
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
              "(groups of labels), thicken, clearance_mm",
-    "output": "formats: stl, ply, obj, 3mf, glb, blend, png, web; lod: GLB levels of detail (0: none)",
+    "output": "formats: stl, ply, obj, 3mf, dicom, glb, blend, png, web; lod: GLB levels of detail (0: none)",
     "distance": "colour every surface by its distance (mm) to the structure `to` (name or value): "
                 "within margins_mm red, yellow, green",
     "web": "the web page (format web): levels of detail, coarsest shown first",
@@ -216,6 +231,8 @@ _TYPES = {
         isinstance(x, str) or _is_int(x) for x in v)), "\"all\" or a list of label values/names"),
     "levels": (lambda v: isinstance(v, list) and all(_is_number(x) for x in v), "a list of numbers"),
     "space": (lambda v: isinstance(v, str), "\"RAS\" or \"LPS\""),
+    "grid": (lambda v: isinstance(v, str), "a mask name, \"image\" or \"native\""),
+    "contours": (lambda v: isinstance(v, str), "\"raster\" or \"tile\""),
     "cap": (lambda v: isinstance(v, bool), "true or false"),
     "keep_largest": (lambda v: isinstance(v, bool), "true or false"),
     "min_component_mm3": (lambda v: _is_number(v), _NUMBER),

@@ -47,6 +47,11 @@ def build_report(result: "Result") -> Dict:
            "surfaces": [surface_entry(m, extra, files, smoothing, result.decimation, base)
                         for m, extra, files in zip(result.surfaces, result.cleaning, p.surfaces)]}
     out["files"].update(report=relative(p.report, base), recipe=relative(p.recipe, base))
+    if "layers" in facts:  # segmentations (issue 14): overlapping structures, one layer each
+        out["layers"], out["overlaps"] = facts["layers"], facts["overlaps"]
+    out["notes"] = list(facts["meta"].get("notes") or [])
+    if p.dicom_reference and p.dicom_reference.get("note"):
+        out["notes"].append(p.dicom_reference["note"])
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import Dict, List, Optional, Union
 
 from ..core.io import load
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
+from ..core.model.segmentation import Segmentation, stack_surface_sets
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing.checks import check_parts
@@ -29,7 +30,7 @@ class Result:
     label or level, mm), the final :class:`SurfaceSet`, the report dict and where files went.
     The other fields are what each stage reported (see :mod:`anatomesh.app.report`)."""
 
-    volume: Volume
+    volume: Union[Volume, Segmentation]
     recipe: Recipe
     surface_set: Optional[SurfaceSet] = None
     surfaces: List[Mesh] = field(default_factory=list)
@@ -64,18 +65,10 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     clock = _Clock(progress)
     clock.start("read", 0.0, "reading")
     volume = load(recipe.input, series=recipe.series, volume_index=recipe.volume_index,
-                  labels=recipe.label_table, space=recipe.space, progress=clock.sub(0.2))
-    volume, fixes = stages.prepare_volume(volume, recipe)
-    res = Result(volume, recipe, fixes=fixes)
-    clock.start("extract", 0.2, "extracting surfaces")
-    raw = stages.extract(volume, recipe, clock.sub(0.4))
-    clock.start("smooth", 0.4, f"smoothing ({recipe.smooth})")
-    smoothed, res.smoothing = stages.smooth(raw, recipe, clock.sub(0.55))
-    clock.start("decimate", 0.55, "decimating")
-    res.surface_set, res.decimation = stages.decimate(smoothed, recipe, float(max(volume.spacing)),
-                                                      clock.sub(0.7))
-    res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
-    res.fixes += [fix] if fix else []
+                  labels=recipe.label_table, space=recipe.space, grid=recipe.grid,
+                  progress=clock.sub(0.2))
+    res = Result(volume, recipe)
+    raw_warnings = _layered_surfaces(volume, recipe, clock, res)
     res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
@@ -91,11 +84,41 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
         res.print_check = check_parts(res.surfaces, profile=recipe.profile, min_wall=recipe.min_wall,
                                       min_gap=recipe.min_gap, progress=clock.sub(0.99))
     res.timings = clock.stop()
-    res.warnings = reports.warnings_of(volume.warnings, raw.warnings, res.smoothing, res.decimation)
+    res.warnings = reports.warnings_of(volume.warnings, raw_warnings, res.smoothing, res.decimation)
     res.report = reports.build_report(res)
     reports.save(res.report, recipe, res.plan.report, res.plan.recipe)
     report(progress, 1.0, "done")
     return res
+
+
+def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result) -> List[str]:
+    """Fix → extract → smooth → decimate each label-map layer on its own (a Segmentation's layers
+    share no vertex, so one layer's smoothing, untangling or decimation never moves another's
+    surfaces), then one closed shell per structure; fills ``res`` and returns the extraction
+    warnings. A plain Volume is one layer."""
+    layers = stages.layers_of(volume, recipe)
+    sets, smoothing, decimation, warnings = [], [], [], []
+    for i, (layer, lrecipe) in enumerate(layers):
+        def at(x: float) -> float:
+            return 0.2 + 0.5 * (i + x) / len(layers)
+        tag = f" (layer {i + 1}/{len(layers)})" if len(layers) > 1 else ""
+        layer, fixes = stages.prepare_volume(layer, lrecipe)
+        res.fixes += fixes
+        clock.start("extract", at(0.0), "extracting surfaces" + tag)
+        raw = stages.extract(layer, lrecipe, clock.sub(at(0.3)))
+        warnings += [w for w in raw.warnings if w not in warnings]
+        clock.start("smooth", at(0.3), f"smoothing ({recipe.smooth}){tag}")
+        smoothed, rep = stages.smooth(raw, lrecipe, clock.sub(at(0.7)))
+        smoothing.append(rep)
+        clock.start("decimate", at(0.7), "decimating" + tag)
+        done, rep = stages.decimate(smoothed, lrecipe, float(max(layer.spacing)), clock.sub(at(1.0)))
+        sets.append(done)
+        decimation.append(rep)
+    res.smoothing, res.decimation = stages.merge_reports(smoothing, decimation)
+    res.surface_set = stack_surface_sets(sets)
+    res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
+    res.fixes += [fix] if fix else []
+    return warnings
 
 
 class _Clock:

@@ -13,12 +13,15 @@ surfaces:
 :func:`decimate`         quadric decimation of the whole set (seams stay shared)
 :func:`shells`           one closed Mesh per label/level (the clearance fix pulls touching parts
                          apart), small components dropped as asked
+:func:`layers_of`        the label-map layers of a Segmentation (overlapping structures), each
+                         run through the stages on its own
+:func:`merge_reports`    one smoothing/decimation report for all layers
 =======================  ======================================================================
 """
 from __future__ import annotations
 
 import dataclasses
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -31,12 +34,13 @@ from ..core.model.errors import AnatomeshError
 from ..core.model.labels import LabelInfo, select_labels
 from ..core.model.mesh import Mesh, compact
 from ..core.model.progress import Progress
+from ..core.model.segmentation import Segmentation, as_layers
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing import fixes as printfix
 from ..core.printing.profiles import resolve_profile
 from ..core.smooth.driver import smooth_surfaces
-from .recipe import SMOOTH_NONE, Recipe
+from .recipe import CONTOURS_TILE, SMOOTH_NONE, Recipe
 
 
 def prepare_volume(volume: Volume, recipe: Recipe) -> Tuple[Volume, List[Dict]]:
@@ -84,6 +88,8 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
     """The surfaces of ``volume`` as one SurfaceSet: a label map's conforming shells (the labels
     of ``recipe.labels``), or a scan's isosurfaces at ``recipe.levels`` (one label per level)."""
     source = volume.meta.get("source")
+    if recipe.contours == CONTOURS_TILE and volume.meta.get("contours"):
+        return tiled_surfaces(volume, recipe)
     if volume.is_label_map:
         if recipe.levels:
             raise AnatomeshError("--level is for scalar scans; this is a label map (use --labels)", source)
@@ -201,3 +207,65 @@ def distance_colors(meshes: List[Mesh], recipe: Recipe) -> Optional[Dict]:
         return None
     _, summary = color_by_distance(meshes, recipe.distance_to, recipe.margins)
     return summary
+
+
+# -- segmentations with overlapping structures (issue 14: masks, DICOM SEG, RTSTRUCT) -----------
+def layers_of(volume: Union[Volume, Segmentation], recipe: Recipe) -> List[Tuple[Volume, Recipe]]:
+    """The label-map layers to run the stages on, each with the recipe restricted to the
+    structures it holds (``recipe.labels`` resolved against every layer's names). A Volume is
+    one layer; layers holding none of the chosen structures are left out. With
+    ``recipe.contours == "tile"`` and RT contours, one entry (extraction tiles the contours)."""
+    layers = as_layers(volume)
+    if recipe.fuse and len(layers) > 1:
+        raise AnatomeshError("--fuse merges labels of one label map; these structures overlap and "
+                             "lie in separate layers: mesh them without --fuse", volume.meta.get("source"))
+    if len(layers) == 1 or (recipe.contours == CONTOURS_TILE and volume.meta.get("contours")):
+        return [(layers[0], recipe)]
+    whole = Volume(layers[0].data[:0, :0, :0], layers[0].affine, layers[0].space, dict(volume.meta),
+                   volume.labels)
+    wanted = select_labels(whole, recipe.labels)
+    out = []
+    for layer in layers:
+        values = [v for v in (layer.labels or {}) if wanted is None or v in wanted]
+        if values:
+            out.append((layer, dataclasses.replace(recipe, labels=values)))
+    return out
+
+
+def tiled_surfaces(volume: Volume, recipe: Recipe) -> SurfaceSet:
+    """RT contours tiled directly into one closed surface per ROI (:mod:`anatomesh.core.extract.contours`)
+    as a set of independent surfaces."""
+    from ..core.extract.contours import tile_rois
+
+    rois = volume.meta["contours"]
+    wanted = select_labels(Volume(volume.data[:0, :0, :0], volume.affine, volume.space, volume.meta,
+                                  volume.labels), recipe.labels)
+    meshes = tile_rois([r for r in rois if wanted is None or r.info.value in wanted], space=volume.space)
+    return SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
+
+
+def merge_reports(smoothing: List[Dict], decimation: List[Optional[Dict]]) -> Tuple[Dict, Optional[Dict]]:
+    """One smoothing report and one decimation summary for several layers (shells are keyed by
+    their unique value; times and face counts add up; errors take the worst layer)."""
+    if len(smoothing) == 1:
+        return smoothing[0], decimation[0]
+    sm = dict(smoothing[0], shells={}, warnings=[])
+    for rep in smoothing:
+        sm["shells"].update(rep.get("shells") or {})
+        sm["warnings"] += list(rep.get("warnings") or [])
+    if any("seconds" in rep for rep in smoothing):
+        sm["seconds"] = sum(rep.get("seconds", 0.0) for rep in smoothing)
+    decs = [d for d in decimation if d]
+    if not decs:
+        return sm, None
+    dec = dict(decs[0], shells={})
+    for key in ("faces_before", "faces_after", "seconds"):
+        dec[key] = sum(d.get(key, 0) for d in decs)
+    for key in ("hausdorff_mm", "mean_mm"):
+        dec[key] = max(d[key] for d in decs)
+    for flag in ("target_met", "error_bound_met"):
+        if flag in dec:
+            dec[flag] = all(d.get(flag, True) for d in decs)
+    for d in decs:
+        dec["shells"].update(d["shells"])
+    return sm, dec

@@ -12,29 +12,24 @@ if [ -z "$PY" ]; then
     fi
   done
 fi
-# independent printer toolchain for tests/test_slicers.py (Debian packages; skipped when not root)
-if ! command -v admesh >/dev/null 2>&1 || ! command -v prusa-slicer >/dev/null 2>&1; then
+# Debian packages the tests use: the printer toolchain (admesh, prusa-slicer: tests/core/printing/
+# test_slicers.py), the DICOM validator (dicom3tools: the Encapsulated STL test), Debian's chromium
+# driven by Playwright for the web page tests (no browser is downloaded) and node/npm for the
+# viewer's packages. Installed as root in one apt run; elsewhere a note says what is missing.
+need=""
+for pair in admesh:admesh prusa-slicer:prusa-slicer dciodvfy:dicom3tools chromium:chromium npm:"nodejs npm"; do
+  command -v "${pair%%:*}" >/dev/null 2>&1 || need="$need ${pair#*:}"
+done
+if [ -n "$need" ]; then
   if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends admesh prusa-slicer \
-      || echo "warning: could not install admesh/prusa-slicer; tests/test_slicers.py will skip" >&2
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $need \
+      || echo "warning: could not install$need; the tests that need them will fail or skip" >&2
   else
-    echo "note: admesh/prusa-slicer missing (install as root: apt-get install admesh prusa-slicer); tests/test_slicers.py will skip" >&2
+    echo "note:$need missing (install as root: apt-get install$need); the tests that need them will fail or skip" >&2
   fi
 fi
-# web page tests (issue 16): Debian's chromium, driven by Playwright (no browser is downloaded),
-# and node/npm with the viewer's packages (web/package-lock.json) for its unit tests and the
-# check that app/web_viewer/viewer.js is the build of the lockfile
-web_apt=""
-command -v chromium >/dev/null 2>&1 || web_apt="chromium"
-command -v npm >/dev/null 2>&1 || web_apt="$web_apt nodejs npm"
-if [ -n "$web_apt" ]; then
-  if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $web_apt \
-      || echo "warning: could not install$web_apt; the web page tests will fail" >&2
-  else
-    echo "note:$web_apt missing (install as root: apt-get install$web_apt); the web page tests need them" >&2
-  fi
-fi
+# the web viewer's packages (web/package-lock.json): its unit tests and the check that
+# app/web_viewer/viewer.js is the build of the lockfile
 if command -v npm >/dev/null 2>&1; then
   web_stamp="web/node_modules/.anatomesh-lock"
   web_want="$(sha1sum web/package-lock.json | cut -d' ' -f1)"

@@ -33,7 +33,10 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
     filter_glob: StringProperty(default="*.nii;*.nii.gz;*.gz;*.nrrd;*.nhdr;*.dcm;*.ima;*", options={"HIDDEN"})
     filepath: StringProperty(name="File", subtype="FILE_PATH",
                              description="NIfTI/NRRD file, a DICOM folder or one file in it")
-    series: StringProperty(name="Series", description="DICOM series UID or number, when several")
+    series: StringProperty(name="Series", description="DICOM series or segmentation object (number or "
+                                                      "UID), when several")
+    grid: StringProperty(name="Grid", description="Mask folders: a mask name or 'image'; DICOM "
+                                                  "SEG/RTSTRUCT: 'image' or 'native'")
     label_table: StringProperty(name="Label table", subtype="FILE_PATH",
                                 description="Label names/colours file (optional; sidecars are found)")
     space: EnumProperty(name="Space", items=props.SPACE_ITEMS, default="RAS")
@@ -46,12 +49,16 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
         settings = context.scene.anatomesh
         t0 = time.perf_counter()
         with ProgressReporter(context, "reading") as progress:
-            vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress)
+            vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress,
+                              grid=self.grid)
         settings.filepath = self.filepath
         settings.series = self.series
+        settings.grid = self.grid
         settings.label_table = self.label_table
         settings.space = self.space
         fill_lists(settings, vol)
+        for note in vol.meta.get("notes") or []:  # segmentations: what was read, on which grid
+            self.report({"INFO"}, note)
         for w in vol.warnings:
             self.report({"WARNING"}, w)
         if not self.extract:
@@ -113,7 +120,7 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         table = self.label_table or (settings.label_table if not self.filepath else "")
         t0 = time.perf_counter()
         with ProgressReporter(context, "extracting") as progress:
-            vol = load_volume(path, series, table, space, progress=None)
+            vol = load_volume(path, series, table, space, progress=None, grid=settings.grid)
             if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
                 settings.filepath, settings.series, settings.label_table = self.filepath, series, table
                 fill_lists(settings, vol)

@@ -38,10 +38,12 @@ class ANATOMESH_PT_import(_Base, Panel):
         col.prop(s, "filepath", text="")
         col.prop(s, "label_table", text="Labels")
         col.prop(s, "series")
+        col.prop(s, "grid")  # segmentations (issue 14)
         col.prop(s, "space")
         row = self.layout.row(align=True)
         op = row.operator("anatomesh.import_scan", text="Read", icon="FILE_FOLDER")
         op.filepath, op.series, op.label_table, op.space = s.filepath, s.series, s.label_table, s.space
+        op.grid = s.grid
         op.extract = False
         if s.info:
             self.layout.label(text=s.info, icon="INFO")

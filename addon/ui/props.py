@@ -92,7 +92,8 @@ class ANATOMESH_PG_settings(PropertyGroup):
     """Scene settings: the next import / extraction / export."""
 
     filepath: StringProperty(name="Scan", subtype="FILE_PATH",
-                             description="NIfTI, NRRD file or DICOM folder (or one file in it)")
+                             description="NIfTI, NRRD file, DICOM folder (or one file in it: image, SEG, "
+                                         "RTSTRUCT) or a folder of binary masks")
     series: StringProperty(name="Series", description="DICOM SeriesInstanceUID or 1-based number "
                                                       "when the folder holds several")
     label_table: StringProperty(name="Label table", subtype="FILE_PATH",
@@ -100,6 +101,10 @@ class ANATOMESH_PG_settings(PropertyGroup):
                                             "colour table, ITK-SNAP); a sidecar is found automatically")
     space: EnumProperty(name="Space", items=SPACE_ITEMS, default="RAS",
                         description="Patient coordinate system of the vertex coordinates")
+    # segmentations (issue 14): mask folders, DICOM SEG, RTSTRUCT
+    grid: StringProperty(name="Grid", description="Mask folders: the grid to mesh on (a mask name or "
+                                                  "'image'; empty: the finest). DICOM SEG/RTSTRUCT: "
+                                                  "'image' or 'native'")
     kind: EnumProperty(name="Kind", items=(("NONE", "Nothing loaded", ""), ("LABELS", "Label map", ""),
                                            ("LEVELS", "Scalar scan", "")), default="NONE")
     modality: StringProperty(name="Modality")

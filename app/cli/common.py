@@ -18,10 +18,15 @@ EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 def add_input_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     """The scan path(s) and the reader's options."""
     p.add_argument("path", nargs="+" if required else "*",
-                   help="DICOM folder or files, .nii/.nii.gz, .nrrd/.nhdr/.seg.nrrd")
-    p.add_argument("--series", help="DICOM series: UID or number when a folder holds several")
+                   help="DICOM folder or files (image series, SEG, RTSTRUCT), .nii/.nii.gz, "
+                        ".nrrd/.nhdr/.seg.nrrd, or a folder/list of binary masks (one per structure)")
+    p.add_argument("--series", help="DICOM series or segmentation object (SEG/RTSTRUCT): its number in "
+                                    "`anatomesh inspect`'s list, SeriesNumber or UID, when a folder holds several")
     p.add_argument("--volume", type=int, dest="volume_index", help="volume index of a 4D NIfTI")
     p.add_argument("--label-table", help="label names/colours (TotalSegmentator JSON, Slicer .ctbl, ITK-SNAP)")
+    p.add_argument("--grid", help="mask folders: the grid to mesh on, a mask name or 'image' (default the "
+                                  "finest mask grid); DICOM SEG/RTSTRUCT: 'image' (the referenced series, "
+                                  "default when present) or 'native' (the object's own planes)")
 
 
 def path_arg(paths: List[str]):

@@ -26,17 +26,54 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_inspect(args) -> int:
+    contents = dicom_contents(args.path)  # segmentations (issue 14): series and SEG/RTSTRUCT objects
+    if contents and args.series is None and sum(e["kind"] != "image" for e in contents) > 1:
+        facts = {"path": str(args.path[0]), "dicom_contents": contents}
+        print(json.dumps(facts, indent=2) if args.json else "\n".join(
+            _segmentation_lines(facts) + ["(several segmentation objects: add --series N for the details of one)"]))
+        return EXIT_OK
     vol = load(path_arg(args.path), series=args.series, volume_index=args.volume_index,
-               labels=args.label_table, progress=TerminalProgress("reading"))
+               labels=args.label_table, grid=args.grid, progress=TerminalProgress("reading"))
     facts = describe(vol)
     facts["path"] = [str(p) for p in args.path] if len(args.path) > 1 else str(args.path[0])
+    if contents:
+        facts["dicom_contents"] = contents
     print(json.dumps(facts, indent=2) if args.json else format_text(facts))
     return EXIT_OK
 
 
+def dicom_contents(paths: List[str]) -> List[Dict]:
+    """The image series and segmentation objects of a DICOM folder (empty for other inputs)."""
+    from pathlib import Path
+
+    from ...core.io.dicom_objects import list_dicom
+    from ...core.io.masks import mask_files
+
+    if len(paths) != 1 or not Path(paths[0]).is_dir() or mask_files(paths[0]):
+        return []
+    return list_dicom(paths[0])
+
+
+def _segmentation_lines(facts: Dict) -> List[str]:
+    lines = []
+    if facts.get("dicom_contents"):
+        lines.append("contents     (choose with --series N)")
+        lines += [f"  [{e['number']}] {e['kind']:<16} {e['description']}" for e in facts["dicom_contents"]]
+    meta = facts.get("meta", {})
+    for note in meta.get("notes") or []:
+        lines.append(f"note         {note}")
+    if meta.get("grid"):
+        lines.append(f"grid         {meta['grid']}")
+    for layer in facts.get("layers", []):
+        lines.append(f"layer {layer['layer']}      {', '.join(layer['structures'])}")
+    for o in facts.get("overlaps", []):
+        lines.append(f"overlap      {o['a']} & {o['b']}: {o['voxels']} voxels, {o['mm3']:.1f} mm3")
+    return lines
+
+
 def format_text(facts: Dict) -> str:
     """Human-readable report of :func:`describe`'s facts."""
-    lines = [
+    lines = _segmentation_lines(facts) + [
         f"format       {facts['format']}   modality {facts['modality']}",
         f"shape        {' x '.join(str(s) for s in facts['shape'])} voxels   dtype {facts['dtype']}",
         f"spacing      {' x '.join(f'{s:g}' for s in facts['spacing'])} mm   "

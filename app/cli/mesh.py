@@ -20,7 +20,8 @@ from .web import add_distance_args, margins_arg  # issue 16
 RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
                 "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
                 "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
-                "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance")
+                "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance",
+                "grid", "contours")
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -46,10 +47,14 @@ def _surface_args(m) -> None:
     m.add_argument("--level", type=float, action="append", metavar="VALUE",
                    help="isovalue for a scalar scan (repeat for several surfaces)")
     m.add_argument("--labels", help="all (default), or values/names: 1,5,7 or liver,spleen")
-    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, glb, blend, png, web (default stl); "
-                                    "3mf also writes one combined print file, glb one file with every "
-                                    "surface, blend a Blender scene, png its Cycles render (need bpy), "
-                                    "web a 3D page OUT/web/index.html")
+    m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, dicom, glb, blend, png, web (default "
+                                    "stl); 3mf also writes one combined print file, dicom one Encapsulated "
+                                    "STL object per surface in the source's study, glb one file with every "
+                                    "surface, blend a Blender scene, png its Cycles render (need bpy), web a "
+                                    "3D page OUT/web/index.html")
+    m.add_argument("--contours", choices=("raster", "tile"),
+                   help="RTSTRUCT contours to surfaces: raster (default: even-odd rasterisation, shape-based "
+                        "interpolation, conforming extraction) or tile (direct tiling between adjacent contours)")
     m.add_argument("--space", choices=("RAS", "LPS"),
                    help="coordinate space of the written vertices (default RAS)")
     m.add_argument("--no-cap", dest="cap", action="store_false", default=None,
@@ -144,6 +149,8 @@ def cmd_mesh(args) -> int:
     recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"))
     rep = result.report
+    for note in rep.get("notes", []):  # segmentations (issue 14): what was meshed, on which grid
+        print(f"note: {note}", file=sys.stderr)
     for w in rep.get("warnings", []):
         print(f"warning: {w}", file=sys.stderr)
     n_closed = sum(1 for s in rep["surfaces"] if s["closed"])

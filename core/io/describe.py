@@ -4,10 +4,11 @@
 """
 from __future__ import annotations
 
-from typing import Dict, List
+from typing import Dict, List, Union
 
 import numpy as np
 
+from ..model.segmentation import Segmentation
 from ..model.volume import Volume
 
 #: CT tissue classes by Hounsfield units, used to name histogram peaks
@@ -24,15 +25,23 @@ CT_CLASSES = (
 HIST_BINS = 48
 
 
-def describe(volume: Volume) -> Dict:
+#: meta entries left out of the facts: large (RT contours) or personal (patient and study identifiers)
+PRIVATE_META = ("contours", "dicom_reference")
+
+
+def describe(volume: Union[Volume, Segmentation]) -> Dict:
     """Facts about a volume as a JSON-ready dict.
 
     Keys: ``format``, ``modality``, ``shape``, ``spacing`` (mm), ``space``, ``orientation`` (3 letters),
     ``affine`` (4x4 nested lists, voxel index → mm in ``space``), ``dtype``, ``min``, ``max``,
     ``extent_mm`` (size of the voxel grid), ``histogram`` (scalar scans: ``edges``, ``counts``,
     ``peaks``), ``labels`` (label maps: list of ``{value, name, color, voxels, volume_mm3}``),
-    ``warnings`` and ``meta``.
+    ``warnings`` and ``meta``. A :class:`Segmentation` (overlapping structures) gives the facts of
+    its grid, every structure in ``labels`` (with its ``layer``), ``layers`` (the structures of
+    each) and ``overlaps`` (pairs, voxels, mm³).
     """
+    if isinstance(volume, Segmentation):
+        return _describe_layers(volume)
     data = volume.data
     finite = np.isfinite(data) if data.dtype.kind == "f" else None
     vals = data[finite] if finite is not None and not finite.all() else data
@@ -49,7 +58,7 @@ def describe(volume: Volume) -> Dict:
         "max": _num(vals.max()) if vals.size else None,
         "extent_mm": [round(float(s) * n, 3) for s, n in zip(volume.spacing, volume.shape)],
         "warnings": list(volume.warnings),
-        "meta": {k: _jsonable(v) for k, v in volume.meta.items()},
+        "meta": {k: _jsonable(v) for k, v in volume.meta.items() if k not in PRIVATE_META},
     }
     if volume.is_label_map:
         facts["labels"] = label_facts(volume)
@@ -58,6 +67,22 @@ def describe(volume: Volume) -> Dict:
         if hounsfield and not volume.meta.get("modality"):
             facts["modality"] = "CT (guessed from the Hounsfield value range)"
         facts["histogram"] = histogram(vals, hounsfield)
+    return facts
+
+
+def _describe_layers(seg: Segmentation) -> Dict:
+    facts = describe(seg.layers[0])
+    facts["labels"] = []
+    facts["layers"] = []
+    for i, layer in enumerate(seg.layers):
+        entries = [dict(e, layer=i) for e in label_facts(layer)]
+        facts["labels"] += entries
+        facts["layers"].append({"layer": i, "structures": [e["name"] for e in entries]})
+    facts["labels"].sort(key=lambda e: e["value"])
+    facts["overlaps"] = [dict(o) for o in seg.overlaps]
+    facts["warnings"] = list(seg.warnings)
+    facts["meta"] = {k: _jsonable(v) for k, v in seg.meta.items() if k not in PRIVATE_META}
+    facts["max"] = max(int(layer.data.max()) for layer in seg.layers)
     return facts
 
 

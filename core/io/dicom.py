@@ -65,6 +65,7 @@ from ..model.progress import Progress, report, sub
 from ..model.volume import Volume
 from .dicom_geometry import series_geometry
 from .dicom_pixels import read_pixels, to_volume_layout, transfer_syntax
+from .dicom_sop import segmentation_kind
 from .dicom_values import file_names, first_float, float_or, int_or, short_error, text_of
 
 PathLike = Union[str, os.PathLike]
@@ -112,7 +113,7 @@ def list_series(path_or_paths: Union[PathLike, Sequence[PathLike]],
 
 
 def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
-               progress: Optional[Progress] = None) -> Volume:
+               progress: Optional[Progress] = None, scan=None) -> Volume:
     """Read one DICOM image series into an LPS :class:`Volume` (see the module docstring).
 
     Parameters
@@ -134,7 +135,7 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
         units, rescale, transfer_syntax, window_center/width, source, n_files, slice_spacing
         (no patient data); ``warnings`` for problems that did not stop the reading.
     """
-    scan = _scan(path_or_paths, sub(progress, 0.0, 0.3))
+    scan = scan or _scan(path_or_paths, sub(progress, 0.0, 0.3))  # scan: from scan_dicom, if done
     info, headers = _choose(scan, series)
     order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
     files = [info.files[i] for i in order]
@@ -156,6 +157,7 @@ class _Scan:
     series: List[Tuple[SeriesInfo, list]]         # (info, headers) in choice order
     notes: List[str]                              # skipped files, one line per kind
     preferred: Optional[int] = None               # series of the single file given, if any
+    objects: List[Tuple[Path, object]] = field(default_factory=list)  # SEG/RTSTRUCT (issue 14)
 
 
 def _scan(path_or_paths, progress) -> _Scan:
@@ -165,8 +167,11 @@ def _scan(path_or_paths, progress) -> _Scan:
                              source)
     groups: Dict[object, list] = defaultdict(list)
     skipped: Dict[str, List[Path]] = defaultdict(list)
+    objects: List[Tuple[Path, object]] = []
     for n, path in enumerate(files):
         ds, kind = _read_header(path)
+        if ds is not None and segmentation_kind(ds):  # DICOM SEG / RTSTRUCT: kept apart (and noted)
+            objects.append((path, ds))
         if ds is not None:
             kind = _object_kind(ds, path)
         if kind:
@@ -175,7 +180,7 @@ def _scan(path_or_paths, progress) -> _Scan:
             groups[_series_key(ds)].append((path, ds))
         report(progress, (n + 1) / len(files), f"reading DICOM headers {n + 1}/{len(files)}")
     notes = [f"skipped {len(ps)} {kind}: {file_names(ps, source)}" for kind, ps in skipped.items()]
-    if not groups:
+    if not groups and not objects:
         found = "; ".join(f"{len(ps)} {kind}" for kind, ps in skipped.items())
         raise AnatomeshError(f"no DICOM image series found among {len(files)} file(s) ({found}); "
                              "give the folder that holds the image slices", source)
@@ -184,7 +189,13 @@ def _scan(path_or_paths, progress) -> _Scan:
     preferred = None
     if single is not None:
         preferred = next((n for n, (info, _) in enumerate(series) if single in info.files), None)
-    return _Scan(source, series, notes, preferred)
+    return _Scan(source, series, notes, preferred, objects)
+
+
+def scan_dicom(path_or_paths, progress: Optional[Progress] = None):
+    """Headers of a folder (or list): ``.series`` [(SeriesInfo, headers)] in choice order,
+    ``.objects`` [(path, header)] of the DICOM SEG / RTSTRUCT objects, ``.notes``, ``.source``."""
+    return _scan(path_or_paths, progress)
 
 
 def _collect_files(path_or_paths) -> Tuple[List[Path], Path, Optional[Path]]:
@@ -310,6 +321,9 @@ def _series_info(members) -> SeriesInfo:
 def _choose(scan: _Scan, series) -> Tuple[SeriesInfo, list]:
     """The series picked by ``series`` (index, then SeriesNumber, then UID)."""
     found = scan.series
+    if not found:
+        raise AnatomeshError("no DICOM image series here, only segmentation objects (SEG/RTSTRUCT); "
+                             "`anatomesh inspect` lists them", scan.source)
     if series is None or (isinstance(series, str) and not series.strip()):
         if len(found) == 1:
             return found[0]

@@ -24,6 +24,10 @@ def test_manifest_validates():
     assert wheels and not any("numpy" in w for w in wheels)  # Blender ships numpy
     for plat in ("win_amd64", "manylinux", "macosx"):
         assert any(plat in w and "numba" in w for w in wheels), plat
+        # DICOM SEG reading (highdicom) and its compiled dependencies, on every platform
+        assert any(plat in w and "pillow" in w for w in wheels), plat
+        assert any(plat in w and "pyjpegls" in w for w in wheels), plat
+    assert any(w.endswith(".whl") and "highdicom" in w for w in wheels)
     stripped = tomllib.loads(build_extension.strip_wheels(text))
     assert "wheels" not in stripped and "platforms" not in stripped and stripped["id"] == "anatomesh"
     assert stripped["blender_version_min"] == "4.2.0" and stripped["permissions"]["files"]
