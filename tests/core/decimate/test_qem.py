@@ -133,6 +133,32 @@ def test_decimate_mesh_wrapper():
     assert "vertex_ids" not in rep and rep["faces_before"] == 1280
 
 
+def test_set_of_independent_surfaces_rebuilt_without_lattice():
+    # SurfaceSet.from_meshes: no lattice, shell values (isovalues) kept, each shell closed
+    from anatomesh.core.model.surfaceset import SurfaceSet
+
+    a, fa = icosphere(4, 5.0)                                   # 5120 faces, genus 0
+    b, fb = torus(30.0, 10.0, 80, 40)                           # 6400 faces, genus 1
+    ss = SurfaceSet.from_meshes([Mesh(a, fa, name="ball", value=100.0),
+                                 Mesh(b, fb, name="ring", value=250.0)], np.eye(4))
+    out, rep = decimate_surfaces(ss, ratio=0.2)
+    assert rep["target_met"] and rep["faces_after"] <= 0.2 * ss.n_faces + 2
+    assert out.lattice is None and out.shell_values == {1: 100.0, 2: 250.0}
+    assert set(rep["shells"]) == {1, 2}
+    for shell, genus, name in zip(out.shells(), (0, 1), ("ball", "ring")):
+        assert shell.name == name
+        _check_closed(shell.vertices, shell.faces, genus=genus)
+    assert [s.value for s in out.shells()] == [100.0, 250.0]
+
+
+def test_decimate_surfaces_takes_a_surface_set_only():
+    v, f = icosphere(2, 1.0)
+    with pytest.raises(AnatomeshError, match="decimate_mesh"):
+        decimate_surfaces(Mesh(v, f), ratio=0.5)
+    with pytest.raises(AnatomeshError, match="decimate_surfaces"):
+        decimate_mesh((v, f), ratio=0.5)
+
+
 @pytest.mark.parametrize("kwargs, words", [
     (dict(ratio=0.0), "ratio"), (dict(ratio=1.5), "ratio"), (dict(), "exactly one"),
     (dict(ratio=0.5, target_faces=10), "exactly one"),
