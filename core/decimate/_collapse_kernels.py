@@ -11,8 +11,9 @@ Garland & Heckbert 1997 ("Surface simplification using quadric error metrics").
 
 The arrays travel in named tuples:
 
-* :data:`State` — ``V`` (N, 3) float64 centred positions, mm; ``Q`` (N, 10) float64 quadrics;
-  ``F`` (M, 3) int32 faces; ``FD`` (M, 8) float64 face rows, one 64-byte cache line per face:
+* :data:`State` — ``V`` (N, 3) float64 centred positions, mm; ``Q`` (N, 10) float64 quadrics
+  and ``W`` (N,) float64 the number of input vertices merged into each; ``F`` (M, 3) int32
+  faces; ``FD`` (M, 8) float64 face rows, one 64-byte cache line per face:
   columns 0-2 the collapse cost of the face's 3 edges (a refused, *parked* edge stores
   ``-1 - cost`` until a collapse next to it), 3-5 the unit normal, 6 the quality; ``falive``
   (M,) bool; ``flab`` (M, 2) int32 dense labels on the two sides; ``vclass`` (N,) int8 (0 free,
@@ -21,17 +22,21 @@ The arrays travel in named tuples:
 * :data:`Refs` — the vertex → face lists ``refs``, ``vstart``, ``vcount``
   (:mod:`._refs_kernels`);
 * :data:`Budget` — ``final_faces`` (stop there), per dense label ``lab_count`` faces now,
-  ``lab_target`` faces to keep (-1: none), ``lab_maxcost`` quadric bound, ``lab_listed`` whether
-  the label's budget applies; ``budgets`` whether any per-label limit exists;
+  ``lab_target`` faces to keep (-1: none), ``lab_maxerr`` error bound, ``lab_listed`` whether
+  the label's budget applies; ``budgets`` whether any per-label limit exists. Error bounds
+  (mm²) are on ``cost / W``, the quadric cost per
+  merged input vertex (the sum of squared plane distances grows with the number of planes
+  merged, not with the distance);
 * :data:`Log` — the collapse record of a progressive mesh (Hoppe 1996, "Progressive meshes"):
   ``keep``, ``drop`` (C,) int32, ``where`` (C, 3) float64, ``face_death`` (M,) int32 (zero-length
   arrays record nothing), ``stop``: end the run when the log is full;
 * :data:`Options` — ``multi`` (labelled faces), ``cos_max`` (cosine of the largest normal turn),
   ``q_min`` (quality limit).
 
-``stats`` (9,) float64: [largest quadric cost accepted, candidates checked, refusals: locked,
-star too large, label budget, not a feature edge, link condition, geometry (flip, degenerate
-face or sliver), then the collapses saved by an endpoint placement].
+``stats`` (11,) float64: [largest quadric cost accepted, largest ``cost / w`` accepted,
+candidates checked, refusals: locked, star too large, label face budget, error bound, not a
+feature edge, link condition, geometry (flip, degenerate face or sliver), then the collapses
+saved by an endpoint placement].
 """
 from __future__ import annotations
 
@@ -44,9 +49,10 @@ from ._guard_kernels import face_frame, geometry_ok, is_feature_edge, link_ok
 from ._quadric_kernels import FAST, INF, plan, qeval
 from ._refs_kernels import MAXF, add_label, gather, has
 
-State = namedtuple("State", ["V", "Q", "F", "FD", "falive", "flab", "vclass", "ver", "vstamp"])
+State = namedtuple("State", ["V", "Q", "W", "F", "FD", "falive", "flab", "vclass", "ver",
+                             "vstamp"])
 Refs = namedtuple("Refs", ["refs", "vstart", "vcount"])
-Budget = namedtuple("Budget", ["final_faces", "lab_count", "lab_target", "lab_maxcost",
+Budget = namedtuple("Budget", ["final_faces", "lab_count", "lab_target", "lab_maxerr",
                                "lab_listed", "budgets"])
 Log = namedtuple("Log", ["keep", "drop", "where", "face_death", "stop"])
 Options = namedtuple("Options", ["multi", "cos_max", "q_min"])
@@ -57,10 +63,11 @@ STEP = 1           # sweep finished
 REFS_FULL = 3      # vertex -> face lists need compacting
 
 # stats slots
-MAX_COST, CANDIDATES, LOCKED, STAR, BUDGET, NOT_FEATURE, LINK, GEOMETRY, ENDPOINT = range(9)
+(MAX_COST, MAX_ERROR, CANDIDATES, LOCKED, STAR, BUDGET, ERROR, NOT_FEATURE, LINK, GEOMETRY,
+ ENDPOINT) = range(11)
 #: names of the refusal slots LOCKED .. GEOMETRY, in order
-REFUSALS = ("locked", "star_too_large", "label_budget", "not_feature_edge", "link_condition",
-            "geometry")
+REFUSALS = ("locked", "star_too_large", "label_budget", "error_bound", "not_feature_edge",
+            "link_condition", "geometry")
 
 
 @njit(cache=True, inline="always")
@@ -118,9 +125,9 @@ def collapse_pass(st, rf, bud, log, opt, live, stamp, tau, start, counts, stats,
     """
     # the helpers take plain arrays: a named tuple passed to a call costs a reference count
     # update per member, and this loop runs once per candidate edge
-    V, Q, F, FD, falive, flab, vclass, ver, vstamp = st
+    V, Q, W, F, FD, falive, flab, vclass, ver, vstamp = st
     refs, vstart, vcount = rf
-    final, lab_count, lab_target, lab_maxcost, lab_listed, budgets = bud
+    final, lab_count, lab_target, lab_maxerr, lab_listed, budgets = bud
     log_keep, log_drop, log_where, face_death, log_stop = log
     nalive, nref, nlog = counts
     fa, fb = np.empty(MAXF, np.int32), np.empty(MAXF, np.int32)
@@ -148,21 +155,23 @@ def collapse_pass(st, rf, bud, log, opt, live, stamp, tau, start, counts, stats,
             cost, keep, drop, px, py, pz = plan(V, Q, vclass, a, b, q)
             na, nb, why = _stars(refs, vstart, vcount, falive, keep, drop, fa, fb, cost)
             nl = _labels_around(flab, fa, na, fb, nb, labs, why == 0 and (opt.multi or budgets))
+            w = W[keep] + W[drop] if budgets else 1.0     # merged vertices: error bounds
             if why == 0:
-                why = _budget(lab_count, lab_target, lab_maxcost, lab_listed, labs, nl, cost)
+                why = _budget(lab_count, lab_target, lab_maxerr, lab_listed, labs, nl, cost, w)
             if why == 0:
                 why, token = _topology(F, flab, vclass, opt.multi, fa, na, fb, nb, keep, drop,
                                        labs, nl, mark, token)
             if why == 0:
                 why, cost, px, py, pz = _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep,
-                                                   drop, cost, px, py, pz, tau, lab_maxcost,
+                                                   drop, cost, px, py, pz, tau, lab_maxerr, w,
                                                    labs, nl, q, stats)
             if why != 0:
                 stats[why] += 1
                 FD[f0, k0] = -1.0 - e0        # refused: parked until a collapse next to it
                 continue
             stats[MAX_COST] = max(stats[MAX_COST], cost)
-            _move(V, Q, keep, drop, px, py, pz)
+            stats[MAX_ERROR] = max(stats[MAX_ERROR], cost / w)
+            _move(V, Q, W, keep, drop, px, py, pz, budgets)
             nalive -= _remove_faces(F, falive, flab, lab_count, face_death,
                                     nlog < log_keep.shape[0], nlog, keep, drop, fb, nb)
             first = nref
@@ -205,15 +214,18 @@ def _labels_around(flab, fa, na, fb, nb, labs, wanted):
 
 
 @njit(cache=True, fastmath=FAST)
-def _budget(lab_count, lab_target, lab_maxcost, lab_listed, labs, nl, cost):
-    """BUDGET unless some label around the edge is listed and none is exhausted (its face
-    target reached or the cost over its bound); else 0."""
+def _budget(lab_count, lab_target, lab_maxerr, lab_listed, labs, nl, cost, w):
+    """ERROR when the error estimate ``cost / w`` (``w`` input vertices merged) is over the
+    bound of a label around the edge; BUDGET unless some label around the edge is listed and
+    none has reached its face target; else 0."""
     listed = nl == 0
     for j in range(nl):
         lab = labs[j]
         listed = listed or lab_listed[lab]
-        if lab_count[lab] <= lab_target[lab] or cost > lab_maxcost[lab]:
+        if lab_count[lab] <= lab_target[lab]:
             return BUDGET
+        if cost > lab_maxerr[lab] * w:
+            return ERROR
     return 0 if listed else BUDGET
 
 
@@ -237,10 +249,11 @@ def _topology(F, flab, vclass, multi, fa, na, fb, nb, keep, drop, labs, nl, mark
 
 @njit(cache=True, fastmath=FAST)
 def _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep, drop, cost, px, py, pz, tau,
-               lab_maxcost, labs, nl, q, stats):
+               lab_maxerr, w, labs, nl, q, stats):
     """The geometric tests at the planned point; when it flips or slivers a face, the two
     endpoints are tried (subset placement, Garland & Heckbert 1997) while they cost no more than
-    ``tau`` and the labels' bounds. Returns ``(why, cost, x, y, z)``, ``why`` GEOMETRY or 0."""
+    ``tau`` and stay within the labels' error bounds (``w`` merged vertices). Returns
+    ``(why, cost, x, y, z)``, ``why`` GEOMETRY or 0."""
     cos_max, q_min = opt.cos_max, opt.q_min
     if geometry_ok(V, F, FD, fa, na, keep, drop, px, py, pz, cos_max, q_min) \
             and geometry_ok(V, F, FD, fb, nb, keep, drop, px, py, pz, cos_max, q_min):
@@ -248,14 +261,14 @@ def _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep, drop, cost, px, py, 
     if vclass[keep] != 0 or vclass[drop] != 0:
         return GEOMETRY, cost, px, py, pz
     for alt in range(2):
-        w = keep if alt == 0 else drop
-        x, y, z = V[w, 0], V[w, 1], V[w, 2]
+        u = keep if alt == 0 else drop
+        x, y, z = V[u, 0], V[u, 1], V[u, 2]
         c2 = max(qeval(q, x, y, z), 0.0)
         if c2 > tau:
             continue
         within = True
         for j in range(nl):
-            if c2 > lab_maxcost[labs[j]]:
+            if c2 > lab_maxerr[labs[j]] * w:
                 within = False
         if within and geometry_ok(V, F, FD, fa, na, keep, drop, x, y, z, cos_max, q_min) \
                 and geometry_ok(V, F, FD, fb, nb, keep, drop, x, y, z, cos_max, q_min):
@@ -268,11 +281,14 @@ def _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep, drop, cost, px, py, 
 # one collapse
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, fastmath=FAST)
-def _move(V, Q, keep, drop, px, py, pz):
-    """``keep`` moves to (px, py, pz) and takes ``drop``'s quadric."""
+def _move(V, Q, W, keep, drop, px, py, pz, counted):
+    """``keep`` moves to (px, py, pz) and takes ``drop``'s quadric (and its merged-vertex count
+    when ``counted``: error bounds are checked)."""
     V[keep, 0], V[keep, 1], V[keep, 2] = px, py, pz
     for i in range(10):
         Q[keep, i] += Q[drop, i]
+    if counted:
+        W[keep] += W[drop]
 
 
 @njit(cache=True)

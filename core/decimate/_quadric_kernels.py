@@ -33,9 +33,9 @@ def _add_plane(Q, v, nx, ny, nz, d, w):
 
 @njit(cache=True)
 def build_quadrics(V, F, cons_a, cons_b, cons_f):
-    """Per-vertex quadrics: the unit-weight plane of every face at its 3 vertices, plus for each
-    feature edge ``(cons_a[i], cons_b[i])`` a constraint plane through the edge, perpendicular to
-    face ``cons_f[i]`` (keeps junction curves and boundaries in place, in mm)."""
+    """Per-vertex quadrics (N, 10): the unit-weight plane of every face at its 3 vertices, plus
+    for each feature edge ``(cons_a[i], cons_b[i])`` a constraint plane through the edge,
+    perpendicular to face ``cons_f[i]`` (keeps junction curves and boundaries in place, in mm)."""
     n = V.shape[0]
     Q = np.zeros((n, 10))
     for f in range(F.shape[0]):

@@ -58,14 +58,14 @@ class Prepared:
 
 @dataclasses.dataclass
 class Limits:
-    """What one run may do: per dense label a face target (-1: none), a quadric bound (mm²) and
-    whether the label is budgeted at all; globally the faces to stop at and a quadric bound."""
+    """What one run may do: per dense label a face target (-1: none), an error bound and
+    whether the label is budgeted at all; the faces to stop at. Error bounds (mm²) are on a merged vertex's quadric cost per input vertex merged into it
+    (see :mod:`.qem`)."""
 
     lab_target: np.ndarray    # (K,) int64
-    lab_cost: np.ndarray      # (K,) float64
+    lab_err: np.ndarray       # (K,) float64
     listed: np.ndarray        # (K,) bool
     final: int
-    max_cost: float
 
 
 @dataclasses.dataclass
@@ -155,11 +155,14 @@ def _lock_mask(locked, n):
     return lock
 
 
-def limits(kind: str, value, p: Prepared, factor: Optional[float] = None) -> Limits:
+def limits(kind: str, value, p: Prepared, factor=1.0) -> Limits:
     """Budgets of a ``ratio``, ``target_faces`` or ``max_error`` target (one number, or a dict
-    {label value: number} budgeting the listed labels only); ``factor`` scales an error bound."""
+    {label value: number} budgeting the listed labels only). An error bound applies to every
+    label (each shell is measured against it), scaled by ``factor``: one number or (K,) per dense
+    label (the stricter retries of a bounded run)."""
     k = len(p.values)
-    out = Limits(np.full(k, -1, np.int64), np.full(k, np.inf), np.ones(k, np.bool_), 0, np.inf)
+    f = np.broadcast_to(np.asarray(factor, np.float64), (k,))
+    out = Limits(np.full(k, -1, np.int64), np.full(k, np.inf), np.ones(k, np.bool_), 0)
     if isinstance(value, dict):
         out.listed[:] = False
         index = {int(x): i for i, x in enumerate(p.values)}
@@ -174,16 +177,21 @@ def limits(kind: str, value, p: Prepared, factor: Optional[float] = None) -> Lim
             elif kind == "target_faces":
                 out.lab_target[i] = int(x)
             else:
-                out.lab_cost[i] = (factor * x) ** 2
-        if kind == "max_error":
-            out.max_cost = float(out.lab_cost[out.listed].max())
+                out.lab_err[i] = (f[i] * x) ** 2
     elif kind == "ratio":
         out.final = int(round(value * len(p.f)))
     elif kind == "target_faces":
         out.final = int(value)
     else:
-        out.max_cost = (factor * value) ** 2
+        out.lab_err[:] = (f * value) ** 2
     return out
+
+
+def error_bound(lim: Limits, bound: float, factor=1.0) -> Limits:
+    """Add an error cap of ``bound`` mm (scaled by ``factor``, one number or per dense label) to
+    every label of a face target's limits."""
+    lim.lab_err = np.minimum(lim.lab_err, (np.asarray(factor, np.float64) * bound) ** 2)
+    return lim
 
 
 # ---------------------------------------------------------------------------------------------
@@ -196,20 +204,21 @@ def collapse(p: Prepared, lim: Limits, progress: Optional[Progress] = None, atte
 
     ``log_size`` (not None) records the first ``log_size`` collapses (``Collapsed.log``); with
     ``log_stop`` the run ends when the log is full. ``stats``: ``collapses``, ``max_cost``
-    (largest accepted quadric cost, mm²), ``candidates`` (edges checked), ``logged``,
+    (largest accepted quadric cost, mm²), ``max_error`` (largest accepted cost per merged
+    vertex, mm²), ``candidates`` (edges checked), ``logged``,
     ``vertices_before`` and ``refused`` {reason: edges refused} (see
     :mod:`._collapse_kernels`), ``endpoint_placements``.
     """
     st, rf, nref, used_before = _initial_state(p)
     bud = CK.Budget(lim.final, np.bincount(p.dense.ravel(), minlength=len(p.values)).astype(np.int64),
-                    lim.lab_target, lim.lab_cost, lim.listed,
-                    bool(np.any(lim.lab_target >= 0) or np.any(np.isfinite(lim.lab_cost))
+                    lim.lab_target, lim.lab_err, lim.listed,
+                    bool(np.any(lim.lab_target >= 0) or np.any(np.isfinite(lim.lab_err))
                          or not lim.listed.all()))
     c = int(log_size or 0)
     log = CK.Log(np.zeros(c, np.int32), np.zeros(c, np.int32), np.zeros((c, 3)),
                  np.full(0 if log_size is None else len(p.f), -1, np.int32), bool(log_stop))
     opt = CK.Options(p.multi, p.cos_max, p.min_quality)
-    stats = np.zeros(9)
+    stats = np.zeros(11)
     mark = np.zeros(len(p.v), np.int64)           # scratch vertex marks of the link test
     text = "decimating" if attempt == 0 else f"decimating (attempt {attempt + 1}, stricter bound)"
     report(progress, 0.0, text)
@@ -222,7 +231,7 @@ def collapse(p: Prepared, lim: Limits, progress: Optional[Progress] = None, atte
             break
         need = nalive - lim.final
         frac = min(0.5, max(0.002, need / (2.0 * nalive))) * boost
-        tau = _threshold(st, step, frac, tau, lim.max_cost)
+        tau = _threshold(st, step, frac, tau)
         if tau is None:
             break
         if nalive < 0.6 * len(live):
@@ -232,7 +241,7 @@ def collapse(p: Prepared, lim: Limits, progress: Optional[Progress] = None, atte
         report(progress, 0.95 * (m - nalive) / span, text)
         if code == CK.DONE:
             break
-        if done == 0 and (tau >= lim.max_cost or frac >= 1.0):
+        if done == 0 and frac >= 1.0:
             if retried:
                 break                   # nothing collapsible is left under the bound
             # refused edges were parked; their neighbourhoods may have changed: try all again
@@ -261,22 +270,22 @@ def _initial_state(p: Prepared):
     Q = build_quadrics(V, F, ca, cb, cf)
     FD = face_frames(V, F)             # per face: 3 edge costs, unit normal, quality
     CK.edge_costs(V, Q, F, vclass, FD, p.multi)
-    st = CK.State(V, Q, F, FD, np.ones(m, np.bool_), p.dense, vclass, np.zeros(n, np.int32),
-                  np.zeros(n, np.int32))
+    st = CK.State(V, Q, np.ones(n), F, FD, np.ones(m, np.bool_), p.dense, vclass,
+                  np.zeros(n, np.int32), np.zeros(n, np.int32))
     return st, CK.Refs(refs, vstart, vcount), nref, used_before
 
 
-def _threshold(st, step, frac, tau, max_cost):
+def _threshold(st, step, frac, tau):
     """The sweep's cost threshold: the ``frac`` quantile of a sample of the current edge costs,
-    never below the last one (what was allowed and failed stays failed until it changes) nor
-    above ``max_cost``; None when no edge is left."""
+    never below the last one (what was allowed and failed stays failed until it changes); every
+    edge for ``frac`` >= 1; None when no edge is left."""
     sample = CK.sample_costs(st.FD, st.falive, step)
     if sample.size == 0:
         return None
     if frac >= 1.0:
-        return max_cost
+        return np.inf
     i = int(frac * (sample.size - 1))
-    return min(max_cost, max(tau, float(np.partition(sample, i)[i])))
+    return max(tau, float(np.partition(sample, i)[i]))
 
 
 def _sweep(st, rf, bud, log, opt, live, stamp, tau, counts, stats, mark):
@@ -303,6 +312,7 @@ def _result(st, log, logged, nlog, stats, used_before) -> Collapsed:
     remap = np.full(n, -1, np.int64)
     remap[used] = np.arange(used.size)
     info = {"collapses": int(np.count_nonzero(st.ver < 0)), "max_cost": float(stats[CK.MAX_COST]),
+            "max_error": float(stats[CK.MAX_ERROR]),
             "candidates": int(stats[CK.CANDIDATES]), "logged": int(nlog),
             "vertices_before": used_before,
             "refused": {k: int(x) for k, x in zip(CK.REFUSALS, stats[CK.LOCKED:CK.ENDPOINT])},
