@@ -112,7 +112,7 @@ def _warm_up():
     from anatomesh.core.decimate.qem import decimate
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
-    from meshes import icosphere  # tests/meshes.py: the analytic test shapes
+    from helpers.meshes import icosphere  # tests/helpers/meshes.py: the analytic test shapes
 
     v, f = icosphere(2, 1.0)
     decimate(v, f, ratio=0.6, measure=True)

@@ -15,7 +15,7 @@ Level ``k`` is the mesh after the first ``collapses_per_level[k]`` collapses. It
 exactly — bit for bit the arrays the decimation run held after that many collapses — without
 re-running anything: a backwards pass over the log prefix maps every input vertex to the vertex
 it became, the faces alive are those that die later, positions are the last ones written
-(:func:`anatomesh.core.decimate._kernels.replay_collapses`; O(N + M) per level).
+(a numba replay of the log prefix; O(N + M) per level).
 
 Every level keeps what the run keeps: each label's shell closed, 2-manifold and outward with its
 components and genus, seams between labels shared (interfaces stored once), junction curves in
@@ -36,11 +36,12 @@ from typing import Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
-from . import _kernels as _k
-from . import qem as _d
+from . import engine
+from ._replay_kernels import replay_collapses
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
 from ..model.progress import Progress, report
+from ..model.surfaceset import SurfaceSet
 
 
 @dataclass
@@ -117,7 +118,7 @@ class ProgressiveMesh:
         c = int(collapses)
         if not 0 <= c <= self.n_collapses:
             raise AnatomeshError(f"collapses must be in [0, {self.n_collapses}], got {collapses}")
-        rep, pos = _k.replay_collapses(self.keep, self.drop, self.where, c, self.positions)
+        rep, pos = replay_collapses(self.keep, self.drop, self.where, c, self.positions)
         face_ids = np.flatnonzero(self.face_death >= c)
         f = rep[self.faces[face_ids]]
         used = np.flatnonzero(np.bincount(f.ravel(), minlength=len(pos)))
@@ -134,7 +135,7 @@ class ProgressiveMesh:
         if isinstance(src, Mesh):
             return Mesh(v, f, None, name=src.name, value=src.value, color=src.color,
                         space=src.space, meta=dict(src.meta, lod_collapses=int(collapses)))
-        return _d._surfaces_result(src, v, f, fl, vertex_ids, face_ids)
+        return engine.surfaces_result(src, v, f, fl, vertex_ids, face_ids)
 
     def measure(self, k: int, values: Optional[Sequence[int]] = None) -> Dict:
         """Per shell of level ``k`` against the input: ``faces_before``, ``faces_after``,
@@ -148,11 +149,11 @@ class ProgressiveMesh:
         if self.face_labels is None:
             values = None
         elif values is None:
-            values = _d._surface_lock(self.source, None)[1]
+            values = self.source.values()
         else:
             values = [int(x) for x in values]
         v0 = np.asarray(self.source.vertices, np.float64)
-        return _d._measure_shells(v0, self.faces, self.face_labels, v, f, fl, values)
+        return engine.measure_shells(v0, self.faces, self.face_labels, v, f, fl, values)
 
 
 def progressive(surfaces_or_mesh, *, levels: int = 4, face_ratios: Optional[Sequence[float]] = None,
@@ -184,19 +185,20 @@ def progressive(surfaces_or_mesh, *, levels: int = 4, face_ratios: Optional[Sequ
     ProgressiveMesh
         ``.level(k)`` for k = 0 (coarsest) .. ``n_levels - 1`` (the input).
     """
-    surfaces = not isinstance(surfaces_or_mesh, Mesh)
-    if surfaces:
-        lock, _ = _d._surface_lock(surfaces_or_mesh, locked)
+    if isinstance(surfaces_or_mesh, SurfaceSet):
+        lock, _ = engine.surface_lock(surfaces_or_mesh, locked)
         fl_in = surfaces_or_mesh.face_labels
-    else:
+    elif isinstance(surfaces_or_mesh, Mesh):
         lock, fl_in = locked, None
+    else:
+        raise AnatomeshError(f"progressive needs a Mesh or a SurfaceSet, got "
+                             f"{type(surfaces_or_mesh).__name__}")
     ratios = _check_levels(levels, face_ratios, coarsest)
-    p = _d._prepare(surfaces_or_mesh.vertices, surfaces_or_mesh.faces, fl_in, lock,
-                    max_normal_angle, min_quality)
+    p = engine.prepare(surfaces_or_mesh.vertices, surfaces_or_mesh.faces, fl_in, lock,
+                       max_normal_angle, min_quality)
     m = len(p.f)
     final = int(round(min(ratios) * m)) if ratios is not None else int(round((coarsest or 0.0) * m))
-    log, _ = _run(p, final, min_quality, progress)
-    keep, drop, where, death = log
+    keep, drop, where, death = run(p, final, progress).log
     pm = ProgressiveMesh(surfaces_or_mesh, p.centre, p.v64, p.f, p.fl, keep, drop, where, death,
                          np.zeros(0, np.int64))
     pm.collapses_per_level = _choose_levels(death, len(keep), m, levels, ratios)
@@ -231,20 +233,13 @@ def _check_levels(levels, face_ratios, coarsest):
     return np.unique(np.r_[r, 1.0])
 
 
-def _run(p, final_faces, min_quality, progress, stop_after: Optional[int] = None):
-    """One logged collapse run down to ``final_faces`` (or ``stop_after`` collapses); returns
-    ``((keep, drop, where, face_death), result)`` with ``result`` as ``decimate._collapse``'s."""
-    n, m = len(p.v), len(p.f)
-    cap = n if stop_after is None else int(stop_after)
-    log = (np.zeros(cap, np.int32), np.zeros(cap, np.int32), np.zeros((cap, 3)),
-           np.full(m, -1, np.int32))
-    budget = _d._budget("target_faces", int(final_faces), p.values, p.counts, m, p.multi, None)
-    result = _d._collapse(p.v64, p.f, p.dense, p.multi, p.lock, budget, len(p.values), p.cos_max,
-                          min_quality, progress, 0, log=log, log_stop=stop_after is not None)
-    c = result[4]["logged"]
-    death = log[3]
-    death[death < 0] = c
-    return (log[0][:c].copy(), log[1][:c].copy(), log[2][:c].copy(), death), result
+def run(p: engine.Prepared, final_faces: int, progress: Optional[Progress] = None,
+        stop_after: Optional[int] = None) -> engine.Collapsed:
+    """One logged collapse run of prepared inputs down to ``final_faces`` (or stopped after
+    ``stop_after`` collapses); ``.log`` holds the sequence (:func:`engine.collapse`)."""
+    size = len(p.v) if stop_after is None else int(stop_after)
+    lim = engine.limits("target_faces", int(final_faces), p)
+    return engine.collapse(p, lim, progress, log_size=size, log_stop=stop_after is not None)
 
 
 def _choose_levels(death, n_collapses, m, levels, ratios):

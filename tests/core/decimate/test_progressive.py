@@ -3,7 +3,7 @@ as the run held it, keeps each shell closed/manifold with its topology, and seam
 import numpy as np
 import pytest
 
-from anatomesh.core.decimate import progressive as lod
+from anatomesh.core.decimate import engine, progressive as lod
 from anatomesh.core.decimate.qem import decimate
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh
@@ -16,11 +16,11 @@ def _state_after(obj, final_faces, collapses):
     """The decimation run's own arrays after exactly ``collapses`` collapses (a second run of the
     same decimation, stopped there): (vertices float32 mm, faces, face_labels or None)."""
     fl = None if isinstance(obj, Mesh) else obj.face_labels
-    lock = None if isinstance(obj, Mesh) else lod._d._surface_lock(obj, None)[0]
-    p = lod._d._prepare(obj.vertices, obj.faces, fl, lock, 60.0, 0.05)
-    log, (v, f, keep_f, _, stats) = lod._run(p, final_faces, 0.05, None, stop_after=collapses)
-    assert stats["logged"] == collapses
-    return (v + p.centre).astype(np.float32), f, (None if fl is None else p.fl[keep_f])
+    lock = None if isinstance(obj, Mesh) else engine.surface_lock(obj)[0]
+    p = engine.prepare(obj.vertices, obj.faces, fl, lock, 60.0, 0.05)
+    r = lod.run(p, final_faces, stop_after=collapses)
+    assert r.stats["logged"] == collapses
+    return (r.v + p.centre).astype(np.float32), r.f, (None if fl is None else p.fl[r.face_ids])
 
 
 def _closed(v, f, genus, components=1):
@@ -130,3 +130,19 @@ def test_level_index_and_lod_meshes():
         pm.level(3)
     meshes = lod.lod_meshes(Mesh(v, f), levels=3, coarsest=0.25)
     assert [m.n_faces for m in meshes] == pm.faces_per_level
+
+
+def test_levels_of_a_set_of_independent_surfaces():
+    from anatomesh.core.model.surfaceset import SurfaceSet
+
+    v, f = icosphere(4, 10.0)
+    ss = SurfaceSet.from_meshes([Mesh(v, f, name="ball", value=300.0)], np.eye(4))
+    pm = lod.progressive(ss, face_ratios=[0.1])
+    coarse = pm.level(0)
+    assert isinstance(coarse, SurfaceSet) and coarse.lattice is None
+    assert coarse.shell_values == {1: 300.0} and abs(coarse.n_faces - 512) <= 2
+    shell = coarse.shell(1)
+    _closed(shell.vertices, shell.faces, genus=0)
+    assert pm.measure(0)[1]["hausdorff_mm"] < 1.0
+    with pytest.raises(AnatomeshError, match="Mesh or a SurfaceSet"):
+        lod.progressive((v, f))

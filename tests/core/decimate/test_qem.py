@@ -133,6 +133,32 @@ def test_decimate_mesh_wrapper():
     assert "vertex_ids" not in rep and rep["faces_before"] == 1280
 
 
+def test_set_of_independent_surfaces_rebuilt_without_lattice():
+    # SurfaceSet.from_meshes: no lattice, shell values (isovalues) kept, each shell closed
+    from anatomesh.core.model.surfaceset import SurfaceSet
+
+    a, fa = icosphere(4, 5.0)                                   # 5120 faces, genus 0
+    b, fb = torus(30.0, 10.0, 80, 40)                           # 6400 faces, genus 1
+    ss = SurfaceSet.from_meshes([Mesh(a, fa, name="ball", value=100.0),
+                                 Mesh(b, fb, name="ring", value=250.0)], np.eye(4))
+    out, rep = decimate_surfaces(ss, ratio=0.2)
+    assert rep["target_met"] and rep["faces_after"] <= 0.2 * ss.n_faces + 2
+    assert out.lattice is None and out.shell_values == {1: 100.0, 2: 250.0}
+    assert set(rep["shells"]) == {1, 2}
+    for shell, genus, name in zip(out.shells(), (0, 1), ("ball", "ring")):
+        assert shell.name == name
+        _check_closed(shell.vertices, shell.faces, genus=genus)
+    assert [s.value for s in out.shells()] == [100.0, 250.0]
+
+
+def test_decimate_surfaces_takes_a_surface_set_only():
+    v, f = icosphere(2, 1.0)
+    with pytest.raises(AnatomeshError, match="decimate_mesh"):
+        decimate_surfaces(Mesh(v, f), ratio=0.5)
+    with pytest.raises(AnatomeshError, match="decimate_surfaces"):
+        decimate_mesh((v, f), ratio=0.5)
+
+
 @pytest.mark.parametrize("kwargs, words", [
     (dict(ratio=0.0), "ratio"), (dict(ratio=1.5), "ratio"), (dict(), "exactly one"),
     (dict(ratio=0.5, target_faces=10), "exactly one"),
@@ -227,13 +253,85 @@ def test_multilabel_per_label_ratio_budgets_the_listed_label():
 
 
 # ---------------------------------------------------------------------------------------------
+# small shells: the ratio within the error cap (pymeshlab as the oracle)
+# ---------------------------------------------------------------------------------------------
+def _phantom(hollow):
+    """Voxel phantoms (1.5 mm voxels) extracted and smoothed with the default preset: a ball of
+    radius 4.3 voxels (label 1, 732 faces) or a shell (label 1, outer radius 8 voxels) around a
+    core (label 2, radius 4.5 voxels): 3,192 faces, 828 of them the 1|2 seam."""
+    from anatomesh.core.extract.multilabel import label_surfaces
+    from anatomesh.core.smooth.driver import smooth_surfaces
+
+    n = 22 if hollow else 14
+    c = (n - 1) / 2 + 0.5
+    z, y, x = np.mgrid[:n, :n, :n]
+    d = np.sqrt((x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2)
+    a = np.zeros((n, n, n), np.uint8)
+    a[d <= (8.0 if hollow else 4.3)] = 1
+    if hollow:
+        a[d <= 4.5] = 2
+    ss, _ = smooth_surfaces(label_surfaces(a, affine=np.diag([1.5, 1.5, 1.5, 1.0])))
+    return ss
+
+
+def _pymeshlab_hausdorff(ms, a, b, samples):
+    """Symmetric Hausdorff distance between meshes a and b of a pymeshlab MeshSet (dense
+    vertex, edge and face samples)."""
+    h = [ms.get_hausdorff_distance(sampledmesh=i, targetmesh=j, samplevert=True, sampleedge=True,
+                                   sampleface=True, samplenum=samples)["max"]
+         for i, j in ((a, b), (b, a))]
+    return max(h)
+
+
+@pytest.mark.parametrize("hollow", [False, True], ids=["ball", "shell_around_core"])
+def test_small_shells_reach_ten_percent_within_the_default_cap(hollow):
+    """Issue 18: ``--decimate 0.1`` (ratio 0.1, cap one 1.5 mm voxel) stopped small shells at
+    12-16 % (28-29 % in the issue): the cap was checked on sqrt(quadric cost), which grows with
+    the number of planes merged (4-6x the true distance here). pymeshlab's topology-preserving
+    quadric collapse reaches 10 % on the same shells, closed, same genus, within the cap."""
+    import pymeshlab
+
+    ss = _phantom(hollow)
+    assert ss.n_faces == (3192 if hollow else 732)
+    before = {x: topology(s.vertices, s.faces) for x, s in zip(ss.values(), ss.shells())}
+    out, rep = decimate_surfaces(ss, ratio=0.1, max_error=1.5)
+    assert rep["target_met"] and rep["faces_after"] <= 0.105 * rep["faces_before"]
+    assert rep["error_bound_met"] and rep["attempts"] == 1 and rep["hausdorff_mm"] <= 1.5
+    for value, shell in zip(out.values(), out.shells()):
+        t0 = before[value]
+        _check_closed(shell.vertices, shell.faces, genus=t0.genus, components=t0.components)
+    # seams shared: the 1|2 interface faces are the very same triangles in both shells
+    if hollow:
+        seam = out.faces[np.isin(out.face_labels, [1, 2]).all(axis=1)]
+        assert len(seam) > 0
+        key = lambda v, f: {tuple(sorted(map(tuple, v[t].tolist()))) for t in f}
+        tri = [key(s.vertices, s.faces) for s in out.shells()]
+        assert key(out.vertices, seam) == tri[0] & tri[1]
+    for value, s0, s1 in zip(ss.values(), ss.shells(), out.shells()):
+        ms = pymeshlab.MeshSet()
+        for m in (s0, s1, s0):
+            ms.add_mesh(pymeshlab.Mesh(m.vertices.astype(np.float64), m.faces.astype(np.int32)))
+        ms.set_current_mesh(2)
+        ms.meshing_decimation_quadric_edge_collapse(targetperc=0.1, preservetopology=True)
+        pm = ms.current_mesh()
+        # the oracle: 10 % is reachable on this shell, closed, same genus, within the cap
+        _check_closed(pm.vertex_matrix(), pm.face_matrix(), genus=before[value].genus,
+                      components=before[value].components)
+        assert pm.face_number() <= 0.105 * s0.n_faces + 2
+        assert _pymeshlab_hausdorff(ms, 0, 2, 20 * s0.n_faces) <= 1.5
+        # our reported distance, checked independently
+        ours, theirs = rep["shells"][value]["hausdorff_mm"], _pymeshlab_hausdorff(ms, 0, 1, 20 * s0.n_faces)
+        assert abs(ours - theirs) <= max(0.05, 0.05 * theirs), (value, ours, theirs)
+
+
+# ---------------------------------------------------------------------------------------------
 # real data
 # ---------------------------------------------------------------------------------------------
 def test_totalsegmentator_map_within_one_voxel():
     """41-label TotalSegmentator map (3 mm voxels), lightly smoothed: with max_error = 3 mm
-    (one voxel) at least 65 % of the faces go (measured: 71 %, 2 attempts, worst shell 2.83 mm),
-    every shell keeps its topology, and the measured symmetric Hausdorff distance of every shell
-    stays under 3 mm."""
+    (one voxel) at least 75 % of the faces go (measured: 83 %, 4 runs, worst shell 2.99 mm; 71 %
+    when the bound was checked on sqrt(quadric cost)), every shell keeps its topology, and the
+    measured symmetric Hausdorff distance of every shell stays under 3 mm."""
     from anatomesh.core.extract.multilabel import label_surfaces
     from anatomesh.core.io import load
 
@@ -241,7 +339,7 @@ def test_totalsegmentator_map_within_one_voxel():
     ss = ss.copy_with_vertices(_laplacian(ss.vertices, ss.faces, iterations=10))
     before = {x: topology(s.vertices, s.faces) for x, s in zip(ss.values(), ss.shells())}
     out, rep = decimate_surfaces(ss, max_error=3.0)
-    assert rep["faces_after"] <= 0.35 * rep["faces_before"]
+    assert rep["faces_after"] <= 0.25 * rep["faces_before"]
     assert rep["error_bound_met"]
     assert max(s["hausdorff_mm"] for s in rep["shells"].values()) <= 3.0
     for value, shell in zip(out.values(), out.shells()):
@@ -255,13 +353,16 @@ def test_totalsegmentator_map_within_one_voxel():
 @pytest.mark.parametrize("folder, name", [("pulmonary", "heart.nii.gz"), ("aorta", "aorta.nii.gz")])
 def test_totalsegmentator_masks_lose_90_percent_within_one_voxel(folder, name):
     """TotalSegmentator heart and aorta masks (1.5 mm voxels), organ-smoothed: keeping 10 % of
-    the faces stays within one voxel (1.5 mm; measured 1.19 mm heart, 0.66 mm aorta)."""
+    the faces stays within one voxel (1.5 mm; measured 1.19 mm heart, 0.66 mm aorta), also with
+    that voxel as the error cap (as ``--decimate 0.1`` runs it; the cap on sqrt(quadric cost)
+    stopped them at 18 % and 12 %)."""
     from anatomesh.core import label_surfaces, load
     from anatomesh.core.smooth.driver import smooth_surfaces
 
     ss, _ = smooth_surfaces(label_surfaces(load(shared("totalsegmentator", folder, name))), "organ")
-    out, rep = decimate_surfaces(ss, ratio=0.1)
+    out, rep = decimate_surfaces(ss, ratio=0.1, max_error=1.5)
     assert rep["target_met"] and rep["faces_after"] <= 0.1 * rep["faces_before"] + 2
+    assert rep["error_bound_met"] and rep["attempts"] == 1
     assert rep["hausdorff_mm"] <= 1.5 and rep["mean_mm"] <= 0.3
     for shell in out.shells():
         t = topology(shell.vertices, shell.faces)
