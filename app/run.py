@@ -348,7 +348,7 @@ def smooth(surfaces, volume: Volume, recipe: Recipe, progress: Optional[Progress
     :func:`anatomesh.core.smooth.driver.smooth_surfaces` (which measures volume change and the distance
     to the unsmoothed surface).
     """
-    from ..core.smooth.driver import smooth_surfaces
+    from ..core.smooth.driver import smooth_mesh, smooth_surfaces
 
     method = recipe.smooth or SMOOTH_NONE
     if method == SMOOTH_NONE:
@@ -362,7 +362,7 @@ def smooth(surfaces, volume: Volume, recipe: Recipe, progress: Optional[Progress
         return out, rep.as_dict()
     meshes, merged = [], None
     for i, m in enumerate(surfaces):
-        sm, rep = smooth_surfaces(m, method, affine=volume.affine, progress=sub(
+        sm, rep = smooth_mesh(m, method, affine=volume.affine, progress=sub(
             progress, i / len(surfaces), (i + 1) / len(surfaces)), **options, **params)
         sm.meta = dict(m.meta)
         meshes.append(sm)
