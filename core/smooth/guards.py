@@ -18,14 +18,24 @@ import numpy as np
 
 from . import _filter_kernels as _fk
 from . import _guard_kernels as _gk
-from .checks import check_vertices, out_dtype
+from .checks import check_vertices, mesh_structure, out_dtype
 from .constraints import Constraint
-from .prepare import constrain, finish, prepare
+from .prepare import finish, prepare
 from ..geometry.neighbors import MeshStructure, check_faces
 from ..model.errors import AnatomeshError
 
 
-def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3) -> Tuple[np.ndarray, int]:
+def fold_reference(start: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unnormalised normals (M, 3) float64 of the unsmoothed faces: what the fold guard compares
+    against (cache it to guard the same surface again)."""
+    s0 = np.asarray(start, np.float64)
+    f = np.asarray(faces, np.int64)
+    return np.cross(s0[f[:, 1]] - s0[f[:, 0]], s0[f[:, 2]] - s0[f[:, 0]])
+
+
+def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
+           reference: Optional[np.ndarray] = None,
+           structure: Optional[MeshStructure] = None) -> Tuple[np.ndarray, int]:
     """Undo folds: faces whose normal turned by 90° or more from ``start`` (or collapsed).
 
     Smoothing can fold slivers where junction curves cut a voxel corner. Each round, every vertex
@@ -38,6 +48,7 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3) -> Tu
     vertices, start : (N, 3) float, mm — smoothed and unsmoothed positions
     faces : (M, 3) int
     eps : a face counts as collapsed when ``n · n_start <= eps |n_start|²`` (n unnormalised)
+    reference, structure : the :func:`fold_reference` and neighbourhoods, if already built
 
     Returns ``(positions (N, 3) in the dtype of vertices, vertices moved back)``.
     """
@@ -49,25 +60,23 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3) -> Tu
     dtype = out_dtype(vertices)
     if f.shape[0] == 0:
         return v.astype(dtype), 0
-    fi = f.astype(np.int64)
-    ref = np.cross(s0[fi[:, 1]] - s0[fi[:, 0]], s0[fi[:, 2]] - s0[fi[:, 0]])
-    touched = np.zeros(v.shape[0], bool)
-    for _ in range(int(rounds)):
-        bad = _gk.folded(v, f, ref, float(eps))
-        if not bad.any():
-            break
-        idx = np.unique(f[bad])
-        touched[idx] = True
-        v[idx] = 0.5 * (v[idx] + s0[idx])
-    for _ in range(100):  # still folded after the halving rounds: back to the start
-        bad = _gk.folded(v, f, ref, float(eps))
-        if not bad.any():
-            break
-        idx = np.unique(f[bad])
-        touched[idx] = True
-        v[idx] = s0[idx]
-    return v.astype(dtype, copy=False), int(touched.sum())
+    s = mesh_structure(f, v.shape[0], structure)
+    ref = fold_reference(s0, f) if reference is None else reference
+    moved = unfold_in_place(v, s0, s, ref, rounds, eps)
+    return v.astype(dtype, copy=False), moved
 
+
+def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure, reference: np.ndarray,
+                    rounds: int = 10, eps: float = 1e-3) -> int:
+    """:func:`unfold` on float64 (N, 3) ``pos``, in place (no checks); returns the vertices
+    moved. After the first full scan only faces around moved vertices are checked again."""
+    bad = np.flatnonzero(_gk.folded(pos, s.faces, reference, float(eps)))
+    if bad.size == 0:
+        return 0
+    touched = np.zeros(pos.shape[0], np.bool_)
+    _gk.unfold_rounds(pos, start, s.faces, reference, float(eps), s.vf_offsets, s.vf, bad,
+                      int(rounds), touched)
+    return int(touched.sum())
 
 
 def region_volumes(vertices, faces, face_sides, n_regions: int) -> np.ndarray:
@@ -78,35 +87,83 @@ def region_volumes(vertices, faces, face_sides, n_regions: int) -> np.ndarray:
     """
     v = check_vertices(vertices)
     f = check_faces(faces, v.shape[0])
-    normals, areas, centroids = face_frames(v, f)
-    return region_sums(tet_volumes(normals, areas, centroids, v), face_sides, n_regions)
+    regions = VolumeRegions(f, face_sides, np.zeros(n_regions))
+    return regions.volumes(v)[0]
 
 
-def face_frames(v, f):
-    m = f.shape[0]
-    normals, areas, centroids = np.empty((m, 3)), np.empty(m), np.empty((m, 3))
-    _fk.face_normals_areas(v, f, normals, areas, centroids)
-    return normals, areas, centroids
+class VolumeRegions:
+    """The regions of :func:`restore_volumes`, with everything that does not depend on the
+    positions (region ids per face, which targets are free) and working buffers, built once.
 
+    Parameters
+    ----------
+    faces : (M, 3) int32
+    face_sides : (M, 2) int — (inside, outside) region id per face, < 0 for background
+    targets : (R,) float — target volume (mm³) per region; NaN = free (like background)
+    """
 
-def tet_volumes(normals, areas, centroids, v):
-    """Signed volume of the tetrahedron (o, face) per face, o a fixed point: A (n · (c − o)) / 3."""
-    o = v[0] if len(v) else np.zeros(3)
-    return areas * np.einsum("ij,ij->i", normals, centroids - o) / 3.0
+    def __init__(self, faces: np.ndarray, face_sides, targets):
+        tg = np.asarray(targets, np.float64).ravel()
+        sides = np.asarray(face_sides, np.int64).reshape(-1, 2).copy()
+        if sides.shape[0] != faces.shape[0]:
+            raise AnatomeshError(f"face_sides has {sides.shape[0]} rows for {faces.shape[0]} faces")
+        if sides.max(initial=-1) >= tg.size:
+            raise AnatomeshError(f"face_sides name region {sides.max()} but only {tg.size} targets")
+        self.free = ~np.isfinite(tg)
+        sides[(sides >= 0) & self.free[np.maximum(sides, 0)]] = -1
+        self.faces, self.targets, self.r = faces, tg, tg.size
+        self.inside = np.ascontiguousarray(sides[:, 0])
+        self.outside = np.ascontiguousarray(sides[:, 1])
+        self.touching = bool(np.any((self.inside >= 0) & (self.outside >= 0)))
+        m = faces.shape[0]
+        self.normals, self.areas, self.tet = np.empty((m, 3)), np.empty(m), np.empty(m)
+        self.between = np.zeros((self.r, self.r) if self.touching else (1, 1))
 
+    def volumes(self, pos: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """``(volume (R,) mm³, shell area (R,) mm²)`` of every region at float64 ``pos``; fills
+        the face normals and areas, and the areas shared by two regions (``between``)."""
+        origin = pos[0] if len(pos) else np.zeros(3)
+        _gk.face_terms(pos, self.faces, origin, self.normals, self.areas, self.tet)
+        volume, diag = np.zeros(self.r), np.zeros(self.r)
+        _gk.region_terms(self.inside, self.outside, self.areas, self.tet, self.r, volume, diag,
+                         self.between if self.touching else np.zeros((self.r, self.r)))
+        return volume, diag
 
-def region_sums(per_face, face_sides, n_regions):
-    sides = np.asarray(face_sides, np.int64).reshape(-1, 2)
-    out = np.zeros(n_regions)
-    for col, sign in ((0, 1.0), (1, -1.0)):
-        ok = sides[:, col] >= 0
-        out += sign * np.bincount(sides[ok, col], per_face[ok], minlength=n_regions)[:n_regions]
-    return out
+    def offsets(self, pos: np.ndarray) -> np.ndarray:
+        """The offset λ (R + 1,) of every region (last: background, 0) that restores the
+        target volumes to first order; see :func:`restore_volumes`."""
+        volume, diag = self.volumes(pos)
+        dv = np.where(self.free, 0.0, self.targets - volume)
+        active = diag > 0  # M λ = dv: M_rr = area of r's shell, M_rs = −(area between r and s)
+        lam = np.zeros(self.r + 1)
+        if not self.touching:
+            lam[:-1][active] = dv[active] / diag[active]
+        elif np.any(active):
+            m = np.diag(diag) - self.between - self.between.T
+            lam[:-1][active] = np.linalg.lstsq(m[np.ix_(active, active)], dv[active],
+                                               rcond=None)[0]
+        return lam
+
+    def restore(self, pos: np.ndarray, s: MeshStructure, cons: tuple, gain: np.ndarray,
+                iterations: int = 3) -> np.ndarray:
+        """:func:`restore_volumes` on float64 ``pos``; ``cons``: the constraint's kernel
+        arrays (:meth:`Constraint.arrays`), ``gain`` (N,) or empty. Returns the new positions
+        (``pos`` or a buffer)."""
+        buf = np.empty_like(pos)
+        for _ in range(int(iterations)):
+            lam = self.offsets(pos)
+            _gk.region_offset_update(pos, buf, s.vf_offsets, s.vf, self.normals, self.areas, lam,
+                                     self.inside, self.outside, gain)
+            if cons[0] != 0 or cons[4] < np.inf:
+                _fk.constrain_all(buf, *cons)
+            pos, buf = buf, pos
+        return pos
 
 
 def restore_volumes(vertices, faces, face_sides, targets, *, iterations: int = 3,
                     constraint: Optional[Constraint] = None, gain=None,
-                    structure: Optional[MeshStructure] = None) -> np.ndarray:
+                    structure: Optional[MeshStructure] = None,
+                    regions: Optional[VolumeRegions] = None) -> np.ndarray:
     """Move surfaces along their normals so each region gets back its target volume.
 
     The volume-preserving step after smoothing: Taubin's filter keeps volume well on compact
@@ -125,49 +182,16 @@ def restore_volumes(vertices, faces, face_sides, targets, *, iterations: int = 3
     face_sides : (M, 2) int — (inside, outside) region id per face, < 0 for background
     targets : (R,) float — target volume (mm³) per region id; NaN = free (like background)
     constraint, gain, structure : as for the filters (the constraint is re-applied every step)
+    regions : the :class:`VolumeRegions` of these faces, sides and targets, if already built
 
     Returns (N, 3) positions, the dtype of ``vertices``.
     """
     st = prepare(vertices, faces, structure=structure, constraint=constraint, gain=gain,
-                  iterations=iterations)
-    f = st.s.faces
-    tg = np.asarray(targets, np.float64).ravel()
-    sides = np.asarray(face_sides, np.int64).reshape(-1, 2).copy()
-    if sides.shape[0] != f.shape[0]:
-        raise AnatomeshError(f"face_sides has {sides.shape[0]} rows for {f.shape[0]} faces")
-    if sides.max(initial=-1) >= tg.size:
-        raise AnatomeshError(f"face_sides name region {sides.max()} but only {tg.size} targets")
-    free = ~np.isfinite(tg)
-    sides[(sides >= 0) & free[np.maximum(sides, 0)]] = -1
-    r = tg.size
-    inside, outside = sides[:, 0], sides[:, 1]
-    both = (inside >= 0) & (outside >= 0)
-    pair = inside[both] * r + outside[both]
-    buf = np.empty_like(st.pos)
-    for _ in range(int(iterations)):
-        normals, areas, centroids = face_frames(st.pos, f)
-        dv = np.where(free, 0.0, tg - region_sums(tet_volumes(normals, areas, centroids, st.pos),
-                                                   sides, r))
-        # M λ = dv: M_rr = area of r's shell, M_rs = −(area between r and s)
-        diag = np.zeros(r)
-        for col in (inside, outside):
-            ok = col >= 0
-            diag += np.bincount(col[ok], areas[ok], minlength=r)[:r]
-        active = diag > 0
-        lam = np.zeros(r)
-        if not both.any():  # no region touches another: M is diagonal
-            lam[active] = dv[active] / diag[active]
-        elif np.any(active):
-            between = np.bincount(pair, areas[both], minlength=r * r).reshape(r, r)
-            m = np.diag(diag) - between - between.T
-            lam[active] = np.linalg.lstsq(m[np.ix_(active, active)], dv[active], rcond=None)[0]
-        lam_ext = np.r_[lam, 0.0]  # index -1 → background
-        t = lam_ext[inside] - lam_ext[outside]
-        _gk.offset_update(st.pos, buf, st.s.vf_offsets, st.s.vf, normals, areas, t, st.gain)
-        constrain(st, buf)
-        st.pos, buf = buf, st.pos
+                 iterations=iterations)
+    if regions is None:
+        regions = VolumeRegions(st.s.faces, face_sides, targets)
+    st.pos = regions.restore(st.pos, st.s, st.cons, st.gain, iterations)
     return finish(st)
-
 
 
 def component_regions(s: MeshStructure):
