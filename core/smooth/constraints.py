@@ -199,3 +199,10 @@ def distance_gain(vertices: np.ndarray, groups: np.ndarray, distance: float) -> 
     order = np.argsort(keys, kind="stable")
     d = _k.nearest_other_group(v, g, cell, origin, dims, keys[order], order)
     return np.clip(d / distance, 0.0, 1.0)
+
+
+def clamp(pos: np.ndarray, arrays: tuple) -> None:
+    """Put float64 (N, 3) ``pos`` back into a constraint, in place; ``arrays`` from
+    :meth:`Constraint.arrays` (nothing to do for no box and no cap)."""
+    if arrays[0] != 0 or arrays[4] < np.inf:
+        _k.constrain_all(pos, *arrays)

@@ -41,8 +41,9 @@ from .constraints import (Constraint, distance_gain, lattice_constraint, stairca
 from .filters import FILTERS, hc_laplacian, laplacian, mean_curvature_flow, normal_filter, taubin
 from .guards import component_regions, region_volumes, restore_volumes, unfold
 from .presets import DEFAULT, METHODS, PRESETS, resolve
-from .report import SmoothingReport, shell_key
+from .report import SmoothingReport
 from .session import SmoothingSession, face_groups_of
+from .shell_measures import shell_key
 from ..geometry.neighbors import MeshStructure, structure as _structure
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh

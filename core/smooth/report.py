@@ -1,14 +1,13 @@
-"""What smoothing did, per shell: :class:`SmoothingReport` and the per-shell measures behind it."""
+"""What smoothing did: :class:`SmoothingReport` (the per-shell measures come from
+:mod:`~anatomesh.core.smooth.shell_measures`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Dict, List, Tuple
+from typing import Dict
 
 import numpy as np
 
 from .constraints import Constraint
-from ..geometry import measure as _measure
-from ..model.surfaceset import SurfaceSet
 
 
 @dataclass
@@ -67,37 +66,4 @@ def describe(params: dict) -> dict:
             out[k] = v.tolist()
         else:
             out[k] = v
-    return out
-
-
-def shell_key(value) -> int:
-    """The report key of a shell: its value, an int when whole."""
-    key = 0 if value is None else value
-    return int(key) if float(key).is_integer() else float(key)
-
-
-def measure_shells(before: SurfaceSet, after: SurfaceSet, *, distances: bool = True,
-                   volume_warning_pct: float = 5.0) -> Tuple[Dict, List[str]]:
-    """Per shell :func:`~anatomesh.core.geometry.measure.compare` of ``before`` and ``after``
-    (same faces), and the warnings: volume change beyond ``volume_warning_pct`` %, folds,
-    topology changes."""
-    shells: Dict = {}
-    warnings: List[str] = []
-    for a, b in zip(before.shells(), after.shells()):
-        key = shell_key(a.value)
-        r = _measure.compare(a.vertices, b.vertices, a.faces, distances=distances, curvature=False)
-        shells[key] = r
-        warnings += shell_warnings(f"{a.name or 'surface'} ({key})", r, volume_warning_pct)
-    return shells, warnings
-
-
-def shell_warnings(label: str, r: dict, volume_warning_pct: float) -> List[str]:
-    """The warning lines of one shell's measures."""
-    out = []
-    if abs(r["volume_change_pct"]) > volume_warning_pct:
-        out.append(f"{label}: volume changed by {r['volume_change_pct']:+.1f} %")
-    if r["flipped_faces"]:
-        out.append(f"{label}: {r['flipped_faces']} faces folded over by smoothing")
-    if r["topology_changed"]:
-        out.append(f"{label}: {', '.join(r['topology_changed'])} changed by smoothing")
     return out

@@ -1,12 +1,26 @@
 """A smoothing session: the unsmoothed surface and everything that depends only on it, cached, so
 that smoothing again with other settings (a slider in Blender) runs only the filter and the
-guards.
+guards, at kernel speed.
 
 Made once from a :class:`~anatomesh.core.model.surfaceset.SurfaceSet`: a label map's set (each
 vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets") or a set of
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
-``surfaces.affine`` around its start). :meth:`SmoothingSession.run` then runs the whole driver —
-filter, fold guard, volume restoration, untangling — for any settings.
+``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings, padded
+columns, vertex → faces), the cell boxes, the regions and target volumes of the volume step, the
+fold guard's reference normals, the face pairs that can cross inside the boxes (built on the
+first untangle, :func:`~anatomesh.core.geometry.face_pairs.candidate_pairs`) and the unsmoothed
+side of the report. :meth:`SmoothingSession.run` then runs the whole default driver — filter,
+fold guard, volume step, fold guard, untangling — for any settings.
+
+Usage (a slider)::
+
+    session = SmoothingSession(surfaces)               # once per scan
+    vertices, info = session.run("organ", lam=0.55, precision="float32")   # every move
+    smoothed, report = session.smooth("organ")        # with the per-shell report
+
+A cell box is the voxel shrunk by a hair (:attr:`SmoothingSession.margin`, 1e-4 voxel) so two
+vertices of neighbouring cells can never meet on their shared face: faces whose boxes only touch
+then cannot cross, and the candidate pairs are exact.
 """
 from __future__ import annotations
 
@@ -15,14 +29,16 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from .checks import mesh_structure
-from .constraints import Constraint, distance_gain, lattice_constraint, staircase_params, \
-    voxel_constraint
+from .checks import mesh_structure, precision_dtype
+from .constraints import (Constraint, clamp, distance_gain, lattice_constraint, staircase_params,
+                          voxel_constraint)
 from .filters import FILTERS
-from .guards import component_regions, region_volumes, restore_volumes, unfold
+from .guards import VolumeRegions, component_regions, fold_reference, unfold_in_place
 from .presets import DEFAULT, resolve
-from .report import SmoothingReport, describe, measure_shells
+from .report import SmoothingReport, describe
+from .shell_measures import ShellMeasures, shell_key, shell_warnings
 from .untangle import untangle as untangle_crossings
+from ..geometry.face_pairs import FacePairs, candidate_pairs
 from ..geometry.neighbors import MeshStructure
 from ..model.errors import AnatomeshError
 from ..model.progress import Progress, report, sub
@@ -31,10 +47,18 @@ from ..model.surfaceset import SurfaceSet
 
 def face_groups_of(face_labels: np.ndarray) -> np.ndarray:
     """A group id per face from its (inside, outside) labels: faces of the same unordered label
-    pair share a group, so edges between groups are the junctions where 3+ labels meet."""
+    pair share a group (ids in the order of the pairs), so edges between groups are the
+    junctions where 3+ labels meet."""
     fl = np.asarray(face_labels, np.int64).reshape(-1, 2)
-    key = np.minimum(fl[:, 0], fl[:, 1]) * 65536 + np.maximum(fl[:, 0], fl[:, 1])
-    return np.unique(key, return_inverse=True)[1].astype(np.int64).ravel()
+    if fl.size == 0:
+        return np.zeros(0, np.int64)
+    r = int(fl.max()) + 1
+    key = np.minimum(fl[:, 0], fl[:, 1]) * r + np.maximum(fl[:, 0], fl[:, 1])
+    if r * r > 1 << 24:  # too many labels for a table
+        return np.unique(key, return_inverse=True)[1].astype(np.int64).ravel()
+    seen = np.zeros(r * r, np.int64)
+    seen[key] = 1
+    return (np.cumsum(seen) - 1)[key]
 
 
 class SmoothingSession:
@@ -50,8 +74,9 @@ class SmoothingSession:
     Attributes
     ----------
     surfaces : SurfaceSet
-    rest : (N, 3) float32 — the unsmoothed positions, mm (the set's own array)
+    rest : (N, 3) float64 — the unsmoothed positions, mm
     structure : MeshStructure
+    margin : float — how much (voxels) a cell box is smaller than the voxel on each side
     """
 
     def __init__(self, surfaces: SurfaceSet, *, structure: Optional[MeshStructure] = None):
@@ -59,10 +84,16 @@ class SmoothingSession:
             raise AnatomeshError(f"smoothing needs a SurfaceSet (SurfaceSet.from_meshes for meshes), "
                                  f"got {type(surfaces).__name__}")
         self.surfaces = surfaces
-        self.rest = surfaces.vertices
         self.faces = surfaces.faces
+        self.rest = np.ascontiguousarray(surfaces.vertices, np.float64)
         self.structure = mesh_structure(self.faces, len(self.rest), structure)
+        a3 = np.asarray(surfaces.affine, np.float64)[:3, :3]
+        scale = float(np.abs(self.rest).max(initial=0.0)) + float(np.abs(a3).sum())
+        spacing = float(np.linalg.norm(a3, axis=0).min()) or 1.0
+        # float32 positions round by < 2^-24 of the coordinates: stay well clear of that
+        self.margin = max(1e-4, 8.0 * 2.0 ** -24 * scale / spacing)
         self._cache: Dict = {}
+        self._cells: set = set()  # ids of the cached cell constraints
 
     @property
     def has_lattice(self) -> bool:
@@ -80,23 +111,30 @@ class SmoothingSession:
             return None
         return self._cached("groups", lambda: face_groups_of(self.surfaces.face_labels))
 
-    def regions(self) -> Tuple[np.ndarray, int, np.ndarray]:
-        """``(face_sides (M, 2), n_regions, target volumes (R,) mm³)`` for the volume step: the
-        labels of a label map's set (background −1), the closed connected components of
-        independent surfaces (open ones get no region)."""
+    def regions(self) -> VolumeRegions:
+        """The regions of the volume step with their unsmoothed volumes: the labels of a label
+        map's set (background −1), the closed connected components of independent surfaces
+        (open ones get none)."""
         return self._cached("regions", self._make_regions)
 
-    def _make_regions(self):
+    def _make_regions(self) -> VolumeRegions:
         if self.has_lattice:
             fl = np.asarray(self.surfaces.face_labels, np.int64)
-            values = np.unique(fl)
-            values = values[values != self.surfaces.background]
-            index = np.full(int(fl.max()) + 1, -1, np.int64)
-            index[values] = np.arange(values.size)
-            sides, n = index[fl], int(values.size)
+            present = np.zeros(int(fl.max(initial=0)) + 1, bool)
+            present[fl.ravel()] = True
+            present[self.surfaces.background] = False
+            index = np.cumsum(present) - 1
+            index[~present] = -1
+            sides, n = index[fl], int(present.sum())
         else:
             sides, n = component_regions(self.structure)
-        return sides, n, region_volumes(self.rest, self.faces, sides, n)
+        regions = VolumeRegions(self.structure.faces, sides, np.zeros(n))
+        regions.targets = regions.volumes(self.rest)[0]
+        return regions
+
+    def reference(self) -> np.ndarray:
+        """Unnormalised normals of the unsmoothed faces (fold guard, report)."""
+        return self._cached("reference", lambda: fold_reference(self.rest, self.faces))
 
     def constraint(self, constraint, max_deviation: Optional[float]) -> Optional[Constraint]:
         """The constraint for a setting: ``"cell"`` → the lattice cell box (label map) or the
@@ -114,15 +152,36 @@ class SmoothingSession:
         return self._cached(("cell", max_deviation), lambda: self._cell(max_deviation))
 
     def _cell(self, max_deviation):
+        s, half = self.surfaces, 0.5 - self.margin
+        if self.has_lattice:
+            c = lattice_constraint(s.affine, s.lattice, half=half, max_deviation=max_deviation)
+        else:
+            c = voxel_constraint(s.affine, half=half, max_deviation=max_deviation)
+        self._cells.add(id(c))
+        return c
+
+    def pairs(self) -> FacePairs:
+        """The face pairs that can cross while every vertex stays in its cell box; cached."""
+        return self._cached("pairs", self._make_pairs)
+
+    def _make_pairs(self) -> FacePairs:
         s = self.surfaces
         if self.has_lattice:
-            return lattice_constraint(s.affine, s.lattice, max_deviation=max_deviation)
-        return voxel_constraint(s.affine, max_deviation=max_deviation)
+            centres = s.lattice - 0.5
+        else:
+            a = np.asarray(s.affine, np.float64)
+            centres = (self.rest - a[:3, 3]) @ np.linalg.inv(a[:3, :3]).T
+        return candidate_pairs(self.faces, centres, (0.5, 0.5, 0.5))
 
     def gain(self, damping_distance: float) -> np.ndarray:
         """Distance-aware damping of the connected parts (:func:`distance_gain`), cached."""
         return self._cached(("gain", float(damping_distance)), lambda: distance_gain(
             self.rest, self.structure.components(), damping_distance))
+
+    def measures(self) -> ShellMeasures:
+        """The per-shell measures against the unsmoothed set; cached."""
+        return self._cached("measures", lambda: ShellMeasures(self.surfaces, self.rest,
+                                                              self.structure, self.reference()))
 
     def run(self, method: str = DEFAULT, *, constraint="auto", max_deviation: Optional[float] = None,
             junctions: bool = True, staircase="auto", damping_distance: Optional[float] = None,
@@ -131,11 +190,13 @@ class SmoothingSession:
             **params) -> Tuple[np.ndarray, dict]:
         """Smooth the unsmoothed surfaces with these settings; see
         :func:`~anatomesh.core.smooth.driver.smooth_surfaces` for each setting. ``precision``:
-        the arithmetic of Taubin/Laplacian passes, "float64" or "float32" (live sliders).
+        the arithmetic of the Taubin/Laplacian passes, "float64" or "float32" (live sliders:
+        within 1e-3 mm of float64); the guards always run in float64.
 
         Returns ``(vertices (N, 3) float32 mm, info)`` with ``info = {"method", "params",
         "seconds", "warnings"}``."""
         t0 = time.perf_counter()
+        precision_dtype(precision)
         name, p = resolve(method, **params)
         preset_constraint = p.pop("constraint", "cell")
         preserve = p.pop("preserve_volume", False) if preserve_volume is None else preserve_volume
@@ -148,15 +209,19 @@ class SmoothingSession:
         kw = self._filter_args(name, p, c, junctions, staircase, damping_distance, precision)
         kw["progress"] = sub(progress, 0.0, 0.9) if preserve else progress
         try:
-            new = FILTERS[name](self.rest, self.faces, **kw)
+            pos = np.ascontiguousarray(FILTERS[name](self.rest, self.faces, **kw), np.float64)
         except TypeError as e:  # an unknown keyword for this filter
             raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
-        new, extra, warnings = self._guards(new, c, kw.get("gain"), preserve, fold_guard,
+        cons = (c.anchored(self.rest) if c is not None else Constraint()).arrays(self.rest)
+        clamp(pos, cons)  # float32 passes round: back inside in float64
+        out, extra, warnings = self._guards(pos, c, cons, kw.get("gain"), preserve, fold_guard,
                                             untangle, progress)
         report(progress, 1.0, "smoothed")
         p.update(constraint=c, **{k: v for k, v in kw.items() if k.startswith("slice_")}, **extra)
-        return new.astype(np.float32), {"method": name, "params": describe(p),
-                                        "seconds": time.perf_counter() - t0, "warnings": warnings}
+        if precision != "float64":
+            p["precision"] = precision
+        return out, {"method": name, "params": describe(p), "seconds": time.perf_counter() - t0,
+                     "warnings": warnings}
 
     def _filter_args(self, name, p, c, junctions, staircase, damping_distance, precision) -> dict:
         kw = dict(p, constraint=c, structure=self.structure)
@@ -171,30 +236,46 @@ class SmoothingSession:
             kw["precision"] = precision
         return kw
 
-    def _guards(self, new, c, gain, preserve, fold_guard, untangle, progress):
+    def _guards(self, pos, c, cons, gain, preserve, fold_guard, untangle, progress):
+        """Fold guard, volume step, fold guard (float64, in place), then untangling on the
+        float32 positions the set keeps. Returns (float32 positions, params, warnings)."""
         extra, warnings = {}, []
         unfolded = 0
         if fold_guard:
-            new, unfolded = unfold(new, self.rest, self.faces)
+            unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
         if preserve:
-            sides, _, targets = self.regions()
-            anchored = c.anchored(self.rest) if c is not None else None
-            new = restore_volumes(new, self.faces, sides, targets, constraint=anchored, gain=gain,
-                                  structure=self.structure)
+            pos = self.regions().restore(pos, self.structure, cons,
+                                         np.zeros(0) if gain is None else gain)
             if fold_guard:
-                new, more = unfold(new, self.rest, self.faces)
-                unfolded += more
+                unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
             extra["preserve_volume"] = True
         if fold_guard:
             extra["unfolded_vertices"] = unfolded
+        out = pos.astype(np.float32)
         if untangle:
             report(progress, 0.97, "checking for crossing faces")
-            new, info = untangle_crossings(new, self.rest, self.faces)
+            pairs = self.pairs() if id(c) in self._cells else None
+            out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
+                                           structure=self.structure)
             extra["untangled_vertices"] = info["moved_vertices"]
             if info["crossings_left"]:
                 warnings.append(f"{info['crossings_left']} pairs of faces still cross after "
                                 "smoothing (the unsmoothed surface crosses itself there)")
-        return new, extra, warnings
+        return out, extra, warnings
+
+    def measure(self, vertices: np.ndarray, *, distances: bool = True,
+                volume_warning_pct: float = 5.0) -> Tuple[Dict, list]:
+        """Per-shell measures of smoothed ``vertices`` (N, 3) against the unsmoothed set
+        (:class:`~anatomesh.core.smooth.shell_measures.ShellMeasures`) and their warnings."""
+        shells = self.measures().measure(np.ascontiguousarray(vertices, np.float64),
+                                         distances=distances)
+        warnings = []
+        for value, r in zip(self.surfaces.values(), shells.values()):
+            info = self.surfaces.labels.get(value)
+            name = info.name if info is not None else "surface"
+            key = shell_key(self.surfaces.shell_values.get(value, value))
+            warnings += shell_warnings(f"{name} ({key})", r, volume_warning_pct)
+        return shells, warnings
 
     def smooth(self, method: str = DEFAULT, *, measure: bool = True, distances: bool = True,
                volume_warning_pct: float = 5.0, **settings) -> Tuple[SurfaceSet, SmoothingReport]:
@@ -204,8 +285,8 @@ class SmoothingSession:
         out = self.surfaces.copy_with_vertices(vertices)
         shells, warnings = {}, list(info["warnings"])
         if measure and info["method"] != "none":
-            shells, more = measure_shells(self.surfaces, out, distances=distances,
-                                          volume_warning_pct=volume_warning_pct)
+            shells, more = self.measure(vertices, distances=distances,
+                                        volume_warning_pct=volume_warning_pct)
             warnings += more
         return out, SmoothingReport(info["method"], info["params"], info["seconds"], shells,
                                     warnings)
