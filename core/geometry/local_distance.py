@@ -2,7 +2,8 @@
 
 Smoothing moves every vertex a little and never changes the faces. The distance from a vertex
 (or a face centroid) of the moved surface to the unmoved one is, nearly everywhere, its distance
-to the unmoved faces around the same vertex (or to the same face): those faces hold the point
+to the unmoved faces around the same vertex (or to the same face and the faces across its
+edges): those faces hold the point
 it started from, so they are within the displacement, and the nearest point lies on them unless
 another sheet of the surface is closer than the displacement itself. These kernels measure exactly
 that — exact point-triangle distances (Ericson 2004, "Real-Time Collision Detection", §5.1.5) to
@@ -14,7 +15,7 @@ within 1 %.
 """
 from __future__ import annotations
 
-from typing import Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 
@@ -30,14 +31,23 @@ def _positions(v, n, what):
     return p
 
 
-def local_distances(points: np.ndarray, vertices: np.ndarray,
-                    s: MeshStructure) -> Tuple[np.ndarray, np.ndarray]:
+def edge_neighbours(s: MeshStructure) -> np.ndarray:
+    """(M, 3) int64: the face across each edge of each face (−1 on an open edge)."""
+    out = np.empty((s.n_faces, 3), np.int64)
+    _k.edge_neighbours(s.faces, s.vf_offsets, s.vf, out)
+    return out
+
+
+def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
+                    near: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
     """Distances from one position of a mesh to another, sampled locally.
 
     Parameters
     ----------
     points, vertices : (N, 3) float, mm — the same vertices at two positions
     s : MeshStructure of the faces (vertex → faces CSR)
+    near : (M, K) int, optional — more faces to measure each centroid against (−1: none), e.g.
+        :func:`edge_neighbours`
 
     Returns
     -------
@@ -46,12 +56,17 @@ def local_distances(points: np.ndarray, vertices: np.ndarray,
         ``points[i]`` (i the row) to face ``s.vf[t]`` at ``vertices``; the sample of vertex i is
         the minimum over its row (or over the faces of one label in it).
     at_centroids : (M,) float64
-        The distance from the centroid of face f at ``points`` to face f at ``vertices``.
+        The distance from the centroid of face f at ``points`` to face f (and ``near[f]``) at
+        ``vertices``.
     """
     n = s.n_vertices
     p, v = _positions(points, n, "points"), _positions(vertices, n, "vertices")
     at_vertices = np.empty(s.vf.shape[0])
     at_centroids = np.empty(s.n_faces)
     _k.incident_distances(p, v, s.faces, s.vf_offsets, s.vf, at_vertices)
-    _k.centroid_distances(p, v, s.faces, at_centroids)
+    nb = np.full((s.n_faces, 0), -1, np.int64) if near is None else \
+        np.ascontiguousarray(near, np.int64)
+    if nb.shape[0] != s.n_faces:
+        raise AnatomeshError(f"near must have one row per face ({s.n_faces}), got {nb.shape}")
+    _k.centroid_distances(p, v, s.faces, nb, at_centroids)
     return at_vertices, at_centroids

@@ -7,7 +7,8 @@ per face and per vertex of the set, then summed per label (a face counts for bot
 sides, inwards for the inside label, outwards for the outside one). The unsmoothed side (areas,
 volumes, topology) is computed once, so measuring again after another smoothing costs a few face
 passes. Distances are sampled at vertices and face centroids in both directions, each sample
-measured to the faces around it in the other surface
+measured to the faces around it in the other surface (a vertex: its faces; a centroid: its face
+and the three across its edges)
 (:func:`anatomesh.core.geometry.local_distance.local_distances`): upper bounds of the
 nearest-triangle distances, equal to them wherever the nearest point lies on those faces.
 """
@@ -18,7 +19,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from . import _shell_kernels as _k
-from ..geometry.local_distance import local_distances
+from ..geometry.local_distance import edge_neighbours, local_distances
 from ..geometry.neighbors import MeshStructure
 from ..geometry.topology import topology
 from ..model.surfaceset import SurfaceSet
@@ -57,6 +58,7 @@ class ShellMeasures:
         self.before = self._sums(rest)
         self._topology: Optional[List[dict]] = None
         self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        self._near: Optional[np.ndarray] = None
 
     def _faces(self, pos: np.ndarray):
         m = self.s.n_faces
@@ -144,8 +146,10 @@ class ShellMeasures:
         """Per label: the worst sample, the sum of samples and their count, both directions."""
         worst, total = np.zeros(len(self.values)), np.zeros(len(self.values))
         count = np.zeros(len(self.values), np.int64)
+        if self._near is None:
+            self._near = edge_neighbours(self.s)
         for a, b in ((after, self.rest), (self.rest, after)):
-            at_vertices, at_centroids = local_distances(a, b, self.s)
+            at_vertices, at_centroids = local_distances(a, b, self.s, self._near)
             _k.label_distances(self.sides, self.s.vf_offsets, self.s.vf, at_vertices,
                                at_centroids, worst, total, count)
         return worst, total, count
