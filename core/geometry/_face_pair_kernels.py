@@ -227,17 +227,17 @@ def homes(lo, hi):
 
 
 @njit(parallel=True, cache=True)
-def permuted(order, lo, hi, reach, faces):
-    """The rows of the four arrays in ``order`` (bucket order), in parallel."""
+def permuted(order, lo, hi, home, reach, faces):
+    """The rows of the five arrays in ``order`` (bucket order), in parallel."""
     m = order.shape[0]
     lo2, hi2 = np.empty_like(lo), np.empty_like(hi)
-    reach2, faces2 = np.empty_like(reach), np.empty_like(faces)
+    home2, reach2, faces2 = np.empty_like(home), np.empty_like(reach), np.empty_like(faces)
     for k in prange(m):
         f = order[k]
         for c in range(3):
             lo2[k, c], hi2[k, c] = lo[f, c], hi[f, c]
-            reach2[k, c], faces2[k, c] = reach[f, c], faces[f, c]
-    return lo2, hi2, reach2, faces2
+            home2[k, c], reach2[k, c], faces2[k, c] = home[f, c], reach[f, c], faces[f, c]
+    return lo2, hi2, home2, reach2, faces2
 
 
 @njit(cache=True)
@@ -305,57 +305,113 @@ def _forward_columns(c, dims, back):
 
 
 @njit(cache=True)
-def _column_partners(c, dims, back, start, z, lo, hi, reach, faces, fid, counts, offsets, out):
-    """Pairs whose first face sits in column c (sorted rows ``start[c]:start[c + 1]``): for
-    each, the faces of the forward columns whose homes fall in its window (z by pointers that
-    only move up) and whose extents overlap its own, sharing no vertex. Counts into ``counts``
-    or, when ``out`` has entries, writes face ids at ``offsets``."""
-    nb = _forward_columns(c, dims, back)
+def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
+    """The pairs whose first face (bucket row) sits in column c: rows of the forward columns
+    whose homes fall in its window (z by pointers that only move up), sharing no vertex. ``X``
+    empty: those whose extents overlap with positive volume (the candidates); else those that
+    cross at positions ``X`` (closed boxes ``box`` overlap, no corner at the same position,
+    Möller; a crossing pair's extents overlap, the window holds every candidate). Counts into ``counts[row]`` or, when ``out`` has entries, writes partner rows from
+    ``offsets[row]`` (rows without count skipped)."""
+    start, z, lo, hi, reach, faces = B.start, B.z, B.lo, B.hi, B.reach, B.faces
+    nb = _forward_columns(c, B.dims, B.back)
     ptr = np.empty(nb.shape[0], np.int64)
     for j in range(nb.shape[0]):
         ptr[j] = start[nb[j, 0]]
-    fill = out.shape[0] > 0
+    fill, test = out.shape[0] > 0, X.shape[0] > 0
     for k in range(start[c], start[c + 1]):
+        if fill and counts[k] == 0:
+            continue
         n = 0
         for j in range(nb.shape[0]):
             c2, dx, dy = nb[j, 0], nb[j, 1], nb[j, 2]
             if dx > reach[k, 0] or dy > reach[k, 1]:
                 continue
-            while ptr[j] < start[c2 + 1] and z[ptr[j]] < z[k] - back[2]:
+            while ptr[j] < start[c2 + 1] and z[ptr[j]] < z[k] - B.back[2]:
                 ptr[j] += 1
             k2 = k + 1 if c2 == c else ptr[j]
             while k2 < start[c2 + 1] and z[k2] <= z[k] + reach[k, 2]:
-                if _overlap(lo, hi, k, k2) and not _shares_vertex(faces, k, k2):
+                if _cross_now(X, B, box, k, k2, rel_eps) if test else \
+                        (_overlap(lo, hi, k, k2) and not _shares_vertex(faces, k, k2)):
                     if fill:
-                        out[offsets[fid[k]] + n] = fid[k2]
+                        out[offsets[k] + n] = k2
                     n += 1
                 k2 += 1
         if not fill:
-            counts[fid[k]] = n
+            counts[k] = n
 
 
 @njit(parallel=True, cache=True)
-def candidate_csr(lo, hi, reach, faces, back, dims, fid, start, z):
-    """CSR ``(offsets (M + 1,) int64, partners int32)`` of :func:`_column_partners` over all
-    columns, by face id (each unordered pair once). ``lo``, ``hi``, ``reach``, ``faces``, ``z``
-    are in bucket order, ``fid`` the face id of each row."""
-    m = faces.shape[0]
-    ncol = start.shape[0] - 1
+def sweep_csr(B, X, box, rel_eps):
+    """CSR over bucket rows ``(offsets (M + 1,), partner rows int32)`` of :func:`_column_sweep`
+    over all columns: candidate pairs (``X`` empty) or crossing pairs (each pair once)."""
+    m = B.faces.shape[0]
+    ncol = B.start.shape[0] - 1
     counts = np.zeros(m, np.int64)
     none = np.zeros(0, np.int32)
+    for c in prange(ncol):
+        if B.start[c + 1] > B.start[c]:
+            _column_sweep(c, B, X, box, rel_eps, counts, counts, none)
     offsets = np.zeros(m + 1, np.int64)
-    for c in prange(ncol):
-        if start[c + 1] > start[c]:
-            _column_partners(c, dims, back, start, z, lo, hi, reach, faces, fid, counts,
-                             offsets, none)
-    for a in range(m):
-        offsets[a + 1] = offsets[a] + counts[a]
+    for k in range(m):
+        offsets[k + 1] = offsets[k] + counts[k]
     partners = np.empty(offsets[m], np.int32)
+    if offsets[m] == 0:
+        return offsets, partners
     for c in prange(ncol):
-        if start[c + 1] > start[c]:
-            _column_partners(c, dims, back, start, z, lo, hi, reach, faces, fid, counts,
-                             offsets, partners)
+        if offsets[B.start[c + 1]] > offsets[B.start[c]]:
+            _column_sweep(c, B, X, box, rel_eps, counts, offsets, partners)
     return offsets, partners
+
+
+@njit(cache=True)
+def _around(k, B, X, box, rel_eps, active, out, pos):
+    """Crossing partners of bucket row k among all rows whose homes lie within ``back`` of its
+    own (both directions); an active partner with a smaller row is left to that row. Writes
+    partner rows at ``out[pos:]`` when ``out`` has entries; returns the count."""
+    start, z, home, dims, back = B.start, B.z, B.home, B.dims, B.back
+    n = 0
+    for x in range(max(home[k, 0] - back[0], 0), min(home[k, 0] + back[0], dims[0] - 1) + 1):
+        for y in range(max(home[k, 1] - back[1], 0), min(home[k, 1] + back[1], dims[1] - 1) + 1):
+            c = x * dims[1] + y
+            lo_k, hi_k = start[c], start[c + 1]
+            while lo_k < hi_k:  # first row with z >= z_k − back
+                mid = (lo_k + hi_k) >> 1
+                if z[mid] < z[k] - back[2]:
+                    lo_k = mid + 1
+                else:
+                    hi_k = mid
+            for k2 in range(lo_k, start[c + 1]):
+                if z[k2] > z[k] + back[2]:
+                    break
+                if k2 == k or (active[k2] and k2 < k):
+                    continue
+                if _cross_now(X, B, box, k, k2, rel_eps):
+                    if out.shape[0] > 0:
+                        out[pos + n] = k2
+                    n += 1
+    return n
+
+
+@njit(parallel=True, cache=True)
+def active_crossings(rows, B, X, box, rel_eps, active):
+    """Crossing pairs ``(row, partner row)`` (K, 2) with an active face: ``rows`` the active
+    bucket rows, ``active`` (M,) bool over bucket rows."""
+    counts = np.zeros(rows.shape[0], np.int64)
+    none = np.zeros(0, np.int64)
+    for i in prange(rows.shape[0]):
+        counts[i] = _around(rows[i], B, X, box, rel_eps, active, none, 0)
+    offsets = np.zeros(rows.shape[0] + 1, np.int64)
+    for i in range(rows.shape[0]):
+        offsets[i + 1] = offsets[i] + counts[i]
+    partners = np.empty(offsets[-1], np.int64)
+    for i in prange(rows.shape[0]):
+        if counts[i]:
+            _around(rows[i], B, X, box, rel_eps, active, partners, offsets[i])
+    out = np.empty((offsets[-1], 2), np.int64)
+    for i in range(rows.shape[0]):
+        for t in range(offsets[i], offsets[i + 1]):
+            out[t, 0], out[t, 1] = rows[i], partners[t]
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -392,24 +448,23 @@ def _boxes_apart(box, a, b):
     return False
 
 
+@njit(cache=True)
+def _cross_now(X, B, box, k, k2, rel_eps):
+    """Bucket rows k and k2 cross at positions X: closed boxes overlap, no shared corner, no
+    corner at the same position, Möller's test with the smaller face id first (as the grid
+    search orders them)."""
+    if _boxes_apart(box, k, k2) or _shares_vertex(B.faces, k, k2) or _welded(X, B.faces, k, k2):
+        return False
+    p, q = np.int64(k), np.int64(k2)
+    if B.fid[q] < B.fid[p]:
+        p, q = q, p
+    f = B.faces
+    return tri_tri(X, f[p, 0], f[p, 1], f[p, 2], f[q, 0], f[q, 1], f[q, 2], rel_eps)
+
+
 @njit(parallel=True, cache=True)
-def test_pairs(X, faces, offsets, partners, active, rel_eps, box, hit):
-    """``hit[t] = 1`` when candidate pair t (face a, ``partners[t]``) crosses: closed bounding
-    boxes (``box``, :func:`face_boxes`) overlap, no corner at the same position, Möller's test
-    true. With ``active`` (M,) bool entries, only pairs with an active face are tested (the
-    others get 0)."""
-    some = active.shape[0] > 0
-    for a in prange(faces.shape[0]):
-        for t in range(offsets[a], offsets[a + 1]):
-            b = partners[t]
-            hit[t] = 0
-            if some and not active[a] and not active[b]:
-                continue
-            if _boxes_apart(box, a, b) or _welded(X, faces, a, b):
-                continue
-            p, q = np.int64(a), np.int64(b)
-            if q < p:  # smaller face first, as the grid search tests them
-                p, q = q, p
-            if tri_tri(X, faces[p, 0], faces[p, 1], faces[p, 2], faces[q, 0], faces[q, 1],
-                       faces[q, 2], rel_eps):
-                hit[t] = 1
+def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
+    """``hit[t] = 1`` when candidate pair t (bucket row, ``partners[t]``) crosses."""
+    for k in prange(B.faces.shape[0]):
+        for t in range(offsets[k], offsets[k + 1]):
+            hit[t] = 1 if _cross_now(X, B, box, k, partners[t], rel_eps) else 0

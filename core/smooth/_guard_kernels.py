@@ -171,3 +171,15 @@ def region_offset_update(src, dst, vf_offsets, vf, normals, areas, lam, inside, 
         dst[i, 0] = px
         dst[i, 1] = py
         dst[i, 2] = pz
+
+
+@njit(parallel=True, cache=True)
+def face_cross(pos, faces, out):
+    """Unnormalised normal ``(b − a) × (c − a)`` of every face into ``out`` (M, 3)."""
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        out[f, 0] = e1y * e2z - e1z * e2y
+        out[f, 1] = e1z * e2x - e1x * e2z
+        out[f, 2] = e1x * e2y - e1y * e2x

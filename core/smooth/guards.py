@@ -28,9 +28,11 @@ from ..model.errors import AnatomeshError
 def fold_reference(start: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unnormalised normals (M, 3) float64 of the unsmoothed faces: what the fold guard compares
     against (cache it to guard the same surface again)."""
-    s0 = np.asarray(start, np.float64)
-    f = np.asarray(faces, np.int64)
-    return np.cross(s0[f[:, 1]] - s0[f[:, 0]], s0[f[:, 2]] - s0[f[:, 0]])
+    s0 = np.ascontiguousarray(start, np.float64)
+    f = np.ascontiguousarray(faces)
+    out = np.empty((f.shape[0], 3))
+    _gk.face_cross(s0, f, out)
+    return out
 
 
 def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,

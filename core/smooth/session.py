@@ -7,9 +7,9 @@ vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets"
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
 ``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings, padded
 columns, vertex → faces), the cell boxes, the regions and target volumes of the volume step, the
-fold guard's reference normals, the face pairs that can cross inside the boxes (built on the
-first untangle, :func:`~anatomesh.core.geometry.face_pairs.candidate_pairs`) and the unsmoothed
-side of the report. :meth:`SmoothingSession.run` then runs the whole default driver — filter,
+fold guard's reference normals, the faces bucketed by their boxes (which pairs can cross:
+:class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`, the pairs listed from the second run on)
+and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the whole default driver — filter,
 fold guard, volume step, fold guard, untangling — for any settings.
 
 Usage (a slider)::
@@ -38,7 +38,7 @@ from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
 from .shell_measures import ShellMeasures, shell_key, shell_warnings
 from .untangle import untangle as untangle_crossings
-from ..geometry.face_pairs import FacePairs, candidate_pairs
+from ..geometry.face_pairs import FaceBoxes
 from ..geometry.neighbors import MeshStructure
 from ..model.errors import AnatomeshError
 from ..model.progress import Progress, report, sub
@@ -94,6 +94,7 @@ class SmoothingSession:
         self.margin = max(1e-4, 8.0 * 2.0 ** -24 * scale / spacing)
         self._cache: Dict = {}
         self._cells: set = set()  # ids of the cached cell constraints
+        self._runs = 0
 
     @property
     def has_lattice(self) -> bool:
@@ -160,18 +161,22 @@ class SmoothingSession:
         self._cells.add(id(c))
         return c
 
-    def pairs(self) -> FacePairs:
-        """The face pairs that can cross while every vertex stays in its cell box; cached."""
-        return self._cached("pairs", self._make_pairs)
+    def boxes(self) -> FaceBoxes:
+        """The faces bucketed by their cell boxes (which pairs can cross while every vertex
+        stays in its box); cached, the pairs listed from the second run on (a slider)."""
+        boxes = self._cached("boxes", self._make_boxes)
+        if self._runs > 1:
+            boxes.materialize()
+        return boxes
 
-    def _make_pairs(self) -> FacePairs:
+    def _make_boxes(self) -> FaceBoxes:
         s = self.surfaces
         if self.has_lattice:
             centres = s.lattice - 0.5
         else:
             a = np.asarray(s.affine, np.float64)
             centres = (self.rest - a[:3, 3]) @ np.linalg.inv(a[:3, :3]).T
-        return candidate_pairs(self.faces, centres, (0.5, 0.5, 0.5))
+        return FaceBoxes(self.faces, centres, (0.5, 0.5, 0.5))
 
     def gain(self, damping_distance: float) -> np.ndarray:
         """Distance-aware damping of the connected parts (:func:`distance_gain`), cached."""
@@ -197,6 +202,7 @@ class SmoothingSession:
         "seconds", "warnings"}``."""
         t0 = time.perf_counter()
         precision_dtype(precision)
+        self._runs += 1
         name, p = resolve(method, **params)
         preset_constraint = p.pop("constraint", "cell")
         preserve = p.pop("preserve_volume", False) if preserve_volume is None else preserve_volume
@@ -254,7 +260,7 @@ class SmoothingSession:
         out = pos.astype(np.float32)
         if untangle:
             report(progress, 0.97, "checking for crossing faces")
-            pairs = self.pairs() if id(c) in self._cells else None
+            pairs = self.boxes() if id(c) in self._cells else None
             out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
                                            structure=self.structure)
             extra["untangled_vertices"] = info["moved_vertices"]

@@ -12,9 +12,9 @@ convex combinations of the smoothed and unsmoothed ones, so every box / ``max_de
 constraint the smoothing held still holds.
 
 With every vertex kept in a box around its start (its voxel cell), only faces whose boxes' extents
-overlap can cross: given those candidate pairs
-(:func:`~anatomesh.core.geometry.face_pairs.candidate_pairs`, built once per surface), each round
-tests only them, and after the first round only the pairs with a face that moved. Without them,
+overlap can cross: given the faces bucketed by those extents
+(:class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`, built once per surface), each round
+tests only those pairs, and after the first round only the pairs with a face that moved. Without them,
 every round searches all faces
 (:func:`~anatomesh.core.geometry.intersections.self_intersections`).
 """
@@ -24,22 +24,23 @@ from typing import Dict, Optional, Tuple
 
 import numpy as np
 
-from ..geometry.face_pairs import FacePairs, crossing_pairs_among
+from ..geometry.face_pairs import FaceBoxes
 from ..geometry.intersections import self_intersections
 from ..geometry.neighbors import MeshStructure, structure as _structure
 from ..model.errors import AnatomeshError
 
 
 def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, rounds: int = 8,
-             shrink: float = 0.5, pairs: Optional[FacePairs] = None,
+             shrink: float = 0.5, pairs: Optional[FaceBoxes] = None,
              structure: Optional[MeshStructure] = None) -> Tuple[np.ndarray, Dict]:
     """Move the vertices of crossing faces back toward ``rest`` until no faces cross.
 
     ``vertices`` (N, 3) float, mm: the smoothed positions; ``rest`` (N, 3): the unsmoothed ones
     (expected free of crossings); ``faces`` (M, 3) int. Each round the displacement of the
     vertices of crossing faces and their 1-ring is multiplied by ``shrink``; after ``rounds``
-    rounds the vertices still involved go back to ``rest`` exactly. ``pairs``: the only face
-    pairs that can cross (all vertices in their boxes); None: search all faces. ``structure``:
+    rounds the vertices still involved go back to ``rest`` exactly. ``pairs``: the faces'
+    :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes` when every vertex stays in its box
+    (only the pairs that can cross are tested); None: search all faces. ``structure``:
     the faces' neighbourhoods, if built. Returns ``(vertices, info)`` with ``info =
     {"crossing_pairs": found at the start, "moved_vertices": how many were pulled back,
     "rounds": rounds used, "crossings_left": pairs left (0 unless ``rest`` itself crosses)}``.
@@ -56,7 +57,7 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
 
     def crossings(active=None):
         if pairs is not None:
-            return crossing_pairs_among(v, pairs, active)
+            return pairs.crossings(v, active)
         return self_intersections(v, f, active=active)
 
     moved = np.zeros(len(v), bool)
