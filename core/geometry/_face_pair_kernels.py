@@ -312,7 +312,7 @@ def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
     cross at positions ``X`` (closed boxes ``box`` overlap, no corner at the same position,
     Möller; a crossing pair's extents overlap, the window holds every candidate). Counts into ``counts[row]`` or, when ``out`` has entries, writes partner rows from
     ``offsets[row]`` (rows without count skipped)."""
-    start, z, lo, hi, reach, faces = B.start, B.z, B.lo, B.hi, B.reach, B.faces
+    start, z, lo, hi, reach, faces, fid = B.start, B.z, B.lo, B.hi, B.reach, B.faces, B.fid
     nb = _forward_columns(c, B.dims, B.back)
     ptr = np.empty(nb.shape[0], np.int64)
     for j in range(nb.shape[0]):
@@ -330,7 +330,7 @@ def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
                 ptr[j] += 1
             k2 = k + 1 if c2 == c else ptr[j]
             while k2 < start[c2 + 1] and z[k2] <= z[k] + reach[k, 2]:
-                if _cross_now(X, B, box, k, k2, rel_eps) if test else \
+                if _cross_now(X, faces, fid, box, k, k2, rel_eps) if test else \
                         (_overlap(lo, hi, k, k2) and not _shares_vertex(faces, k, k2)):
                     if fill:
                         out[offsets[k] + n] = k2
@@ -368,7 +368,7 @@ def _around(k, B, X, box, rel_eps, active, out, pos):
     """Crossing partners of bucket row k among all rows whose homes lie within ``back`` of its
     own (both directions); an active partner with a smaller row is left to that row. Writes
     partner rows at ``out[pos:]`` when ``out`` has entries; returns the count."""
-    start, z, home, dims, back = B.start, B.z, B.home, B.dims, B.back
+    start, z, home, dims, back, faces, fid = B.start, B.z, B.home, B.dims, B.back, B.faces, B.fid
     n = 0
     for x in range(max(home[k, 0] - back[0], 0), min(home[k, 0] + back[0], dims[0] - 1) + 1):
         for y in range(max(home[k, 1] - back[1], 0), min(home[k, 1] + back[1], dims[1] - 1) + 1):
@@ -385,7 +385,7 @@ def _around(k, B, X, box, rel_eps, active, out, pos):
                     break
                 if k2 == k or (active[k2] and k2 < k):
                     continue
-                if _cross_now(X, B, box, k, k2, rel_eps):
+                if _cross_now(X, faces, fid, box, k, k2, rel_eps):
                     if out.shape[0] > 0:
                         out[pos + n] = k2
                     n += 1
@@ -439,6 +439,17 @@ def face_boxes(X, faces, box):
             box[f, 3 + c] = max(x0, max(x1, x2))
 
 
+@njit(parallel=True, cache=True)
+def face_boxes_of(X, faces, rows, box):
+    """:func:`face_boxes` for the faces ``rows`` only."""
+    for i in prange(rows.shape[0]):
+        f = rows[i]
+        for c in range(3):
+            x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
+            box[f, c] = min(x0, min(x1, x2))
+            box[f, 3 + c] = max(x0, max(x1, x2))
+
+
 @njit(cache=True, inline="always")
 def _boxes_apart(box, a, b):
     """The closed boxes of faces a and b do not overlap."""
@@ -448,23 +459,24 @@ def _boxes_apart(box, a, b):
     return False
 
 
-@njit(cache=True)
-def _cross_now(X, B, box, k, k2, rel_eps):
+@njit(cache=True, inline="always")
+def _cross_now(X, faces, fid, box, k, k2, rel_eps):
     """Bucket rows k and k2 cross at positions X: closed boxes overlap, no shared corner, no
     corner at the same position, Möller's test with the smaller face id first (as the grid
     search orders them)."""
-    if _boxes_apart(box, k, k2) or _shares_vertex(B.faces, k, k2) or _welded(X, B.faces, k, k2):
+    if _boxes_apart(box, k, k2) or _shares_vertex(faces, k, k2) or _welded(X, faces, k, k2):
         return False
     p, q = np.int64(k), np.int64(k2)
-    if B.fid[q] < B.fid[p]:
+    if fid[q] < fid[p]:
         p, q = q, p
-    f = B.faces
-    return tri_tri(X, f[p, 0], f[p, 1], f[p, 2], f[q, 0], f[q, 1], f[q, 2], rel_eps)
+    return tri_tri(X, faces[p, 0], faces[p, 1], faces[p, 2], faces[q, 0], faces[q, 1],
+                   faces[q, 2], rel_eps)
 
 
 @njit(parallel=True, cache=True)
 def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
     """``hit[t] = 1`` when candidate pair t (bucket row, ``partners[t]``) crosses."""
-    for k in prange(B.faces.shape[0]):
+    faces, fid = B.faces, B.fid
+    for k in prange(faces.shape[0]):
         for t in range(offsets[k], offsets[k + 1]):
-            hit[t] = 1 if _cross_now(X, B, box, k, partners[t], rel_eps) else 0
+            hit[t] = 1 if _cross_now(X, faces, fid, box, k, partners[t], rel_eps) else 0

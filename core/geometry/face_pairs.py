@@ -77,6 +77,7 @@ class FaceBoxes:
         self._box = np.empty((len(f), 6))
         self._pairs: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._hit = np.zeros(0, np.uint8)
+        self._boxed = None  # face boxes computed (for vertices of this shape)
 
     def materialize(self) -> "FaceBoxes":
         """List the candidate pairs once (CSR over bucket rows); returns self."""
@@ -100,8 +101,9 @@ class FaceBoxes:
     def crossings(self, vertices: np.ndarray, active: Optional[np.ndarray] = None,
                   rel_eps: float = 1e-9) -> np.ndarray:
         """The candidate pairs whose faces cross at these positions, (K, 2) int64, smaller face
-        first, sorted. ``active`` (M,) bool, optional: only pairs with an active face (after
-        moving a few vertices, the faces around them). Same decisions as
+        first, sorted. ``active`` (M,) bool, optional: only pairs with an active face — the
+        faces around the vertices moved since the previous call on these positions (the boxes
+        of the other faces are kept from it). Same decisions as
         :func:`~anatomesh.core.geometry.intersections.self_intersections` (faces with a corner
         at the same position do not count; touching counts)."""
         X = np.ascontiguousarray(vertices, np.float64)
@@ -110,15 +112,22 @@ class FaceBoxes:
             raise AnatomeshError(f"vertices {X.shape} do not match the faces the boxes were built for")
         if f.shape[0] == 0:
             return np.zeros((0, 2), np.int64)
-        _k.face_boxes(X, B.faces, self._box)
         if active is not None:
             act = np.ascontiguousarray(active, np.bool_)
             if act.shape != (f.shape[0],):
                 raise AnatomeshError(f"active must hold one flag per face ({f.shape[0]}), "
                                      f"got {act.shape}")
             act = act[B.fid]
-            pairs = _k.active_crossings(np.flatnonzero(act), B, X, self._box, rel_eps, act)
+            rows = np.flatnonzero(act)
+            if self._boxed == X.shape:  # the other faces did not move: their boxes hold
+                _k.face_boxes_of(X, B.faces, rows, self._box)
+            else:
+                _k.face_boxes(X, B.faces, self._box)
+                self._boxed = X.shape
+            pairs = _k.active_crossings(rows, B, X, self._box, rel_eps, act)
             return _sorted_pairs(B.fid[pairs[:, 0]], B.fid[pairs[:, 1]])
+        _k.face_boxes(X, B.faces, self._box)
+        self._boxed = X.shape
         if self._pairs is None:
             offsets, partners = _k.sweep_csr(B, X, self._box, float(rel_eps))
             rows = np.repeat(np.arange(len(f)), np.diff(offsets))

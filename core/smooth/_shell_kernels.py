@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import get_thread_id, njit, prange
 
 
 @njit(cache=True, inline="always")
@@ -113,3 +113,77 @@ def _add(k, d, worst, total, count):
         worst[k] = d
     total[k] += d
     count[k] += 1
+
+
+@njit(cache=True)
+def vertex_faces(faces, n):
+    """Vertex → faces CSR ``(offsets (n + 1,), faces (3M,))``, faces ascending per vertex."""
+    offsets = np.zeros(n + 1, np.int64)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            offsets[faces[f, c] + 1] += 1
+    for i in range(n):
+        offsets[i + 1] += offsets[i]
+    fill = offsets[:-1].copy()
+    vf = np.empty(offsets[n], np.int64)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            i = faces[f, c]
+            vf[fill[i]] = f
+            fill[i] += 1
+    return offsets, vf
+
+
+@njit(cache=True)
+def _around(faces, vf_offsets, vf, a, spoke, sign, parent):
+    """Edges and fans at vertex a: ``(edges (a, b > a), one face, > 2 faces, 2 faces used in
+    one direction, fans)``. Each face gives two spokes, its corner after a (+1, edge a → b) and
+    before a (−1); faces sharing a spoke are in one fan."""
+    k = vf_offsets[a + 1] - vf_offsets[a]
+    for p in range(k):
+        f = vf[vf_offsets[a] + p]
+        c = 0 if faces[f, 0] == a else (1 if faces[f, 1] == a else 2)
+        spoke[2 * p], sign[2 * p] = faces[f, (c + 1) % 3], 1
+        spoke[2 * p + 1], sign[2 * p + 1] = faces[f, (c + 2) % 3], -1
+        parent[p] = p
+    edges, one, many, same, fans = 0, 0, 0, 0, k
+    for t in range(2 * k):
+        b = spoke[t]
+        first = True
+        count, balance = 0, 0
+        for u in range(2 * k):
+            if spoke[u] == b:
+                count += 1
+                balance += sign[u]
+                if u < t:
+                    first = False
+                elif u > t:  # link the faces of t and u
+                    r, q = t // 2, u // 2
+                    while parent[r] != r:
+                        r = parent[r]
+                    while parent[q] != q:
+                        q = parent[q]
+                    if r != q:
+                        parent[max(r, q)] = min(r, q)
+                        fans -= 1
+        if first and b > a:
+            edges += 1
+            if count == 1:
+                one += 1
+            elif count > 2:
+                many += 1
+            elif balance != 0:
+                same += 1
+    return edges, one, many, same, fans
+
+
+@njit(parallel=True, cache=True)
+def vertex_stats(faces, vf_offsets, vf, out, scratch):
+    """Per vertex: ``out[a] = (edges (a, b > a), boundary edges, non-manifold edges, edges two
+    faces use in one direction, fans)`` of :func:`_around`; ``scratch`` (threads, 5 x most
+    faces at a vertex) int64."""
+    most = scratch.shape[1] // 5
+    for a in prange(vf_offsets.shape[0] - 1):
+        row = scratch[get_thread_id()]
+        out[a, 0], out[a, 1], out[a, 2], out[a, 3], out[a, 4] = _around(
+            faces, vf_offsets, vf, a, row[:2 * most], row[2 * most:4 * most], row[4 * most:])

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 from typing import Dict, List, Optional, Tuple
 
+import numba
 import numpy as np
 
 from . import _shell_kernels as _k
 from ..geometry.local_distance import edge_neighbours, local_distances
+from ..geometry.kernels import union_find_roots
 from ..geometry.neighbors import MeshStructure
-from ..geometry.topology import topology
+from ..model.mesh import Mesh
 from ..model.surfaceset import SurfaceSet
 
 _TOPO_KEYS = ("components", "genus", "closed", "manifold", "oriented", "degenerate_faces")
@@ -78,10 +80,10 @@ class ShellMeasures:
 
     def topology_before(self) -> List[dict]:
         """Per shell: components, genus, closed, manifold, oriented, degenerate faces of the
-        unsmoothed shell (:func:`anatomesh.core.geometry.topology.topology`); cached."""
+        unsmoothed shell, as :func:`anatomesh.core.geometry.topology.topology` gives them; cached.
+        All shells at once: their meshes side by side, edges counted around each vertex."""
         if self._topology is None:
-            whole = [topology(m.vertices, m.faces).as_dict() for m in self.surfaces.shells()]
-            self._topology = [{k: t[k] for k in _TOPO_KEYS} for t in whole]
+            self._topology = shell_topology(self.surfaces.shells(), self.before[:, 3])
         return self._topology
 
     def measure(self, after: np.ndarray, *, distances: bool = True) -> Dict:
@@ -153,6 +155,42 @@ class ShellMeasures:
             _k.label_distances(self.sides, self.s.vf_offsets, self.s.vf, at_vertices,
                                at_centroids, worst, total, count)
         return worst, total, count
+
+
+def shell_topology(shells: List[Mesh], degenerate: np.ndarray) -> List[dict]:
+    """Topology of every shell (components, genus, closed, manifold, oriented; ``degenerate``
+    faces given), as :func:`anatomesh.core.geometry.topology.topology` gives it, for all shells
+    at once: their meshes side by side, edges and fans counted around each vertex, components by
+    union-find."""
+    sizes = np.array([m.n_vertices for m in shells], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    faces = np.concatenate([m.faces.astype(np.int64) + o for m, o in zip(shells, offsets)] or
+                           [np.zeros((0, 3), np.int64)])
+    n = int(offsets[-1])
+    vf_offsets, vf = _k.vertex_faces(faces, n)
+    most = int(np.diff(vf_offsets).max(initial=1))
+    stats = np.zeros((n, 5), np.int64)
+    _k.vertex_stats(faces, vf_offsets, vf, stats,
+                    np.empty((numba.get_num_threads(), 5 * most), np.int64))
+    roots = union_find_roots(np.r_[faces[:, 0], faces[:, 1]], np.r_[faces[:, 1], faces[:, 2]], n)
+    used = np.diff(vf_offsets) > 0
+    shell = np.repeat(np.arange(len(shells)), sizes)
+    k = len(shells)
+    per = [np.bincount(shell, stats[:, j], minlength=k).astype(np.int64) for j in range(4)]
+    pinched = np.bincount(shell, stats[:, 4] > 1, minlength=k)
+    ncomp = np.bincount(shell, used & (roots == np.arange(n)), minlength=k).astype(np.int64)
+    nused = np.bincount(shell, used, minlength=k).astype(np.int64)
+    out = []
+    for i, m in enumerate(shells):
+        closed = per[1][i] == 0 and per[2][i] == 0 and m.n_faces > 0
+        manifold = per[2][i] == 0 and pinched[i] == 0
+        euler = int(nused[i] - per[0][i] + m.n_faces)
+        c = int(ncomp[i])
+        genus = (2 * c - euler) // 2 if closed and manifold and (2 * c - euler) % 2 == 0 else None
+        out.append({"components": c, "genus": genus, "closed": bool(closed),
+                    "manifold": bool(manifold), "oriented": bool(per[3][i] == 0),
+                    "degenerate_faces": int(degenerate[i])})
+    return out
 
 
 def shell_warnings(label: str, r: dict, volume_warning_pct: float) -> List[str]:
