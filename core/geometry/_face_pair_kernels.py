@@ -208,22 +208,28 @@ def extents(centres, faces, half):
     return lo, hi
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True)
 def homes(lo, hi):
     """Home cell ``floor(lo)`` shifted to start at 0, and how far up (in cells) a partner's home
-    may lie, ``ceil(hi) − 1 − floor(lo)``, per face: ``(home, reach)`` (M, 3) int64."""
+    may lie, ``ceil(hi) − 1 − floor(lo)``, per face; with the largest reach ``back`` and the home
+    cells per axis ``dims``: ``(home, reach (M, 3), back, dims (3,))`` int64."""
     m = lo.shape[0]
-    origin = np.empty(3, np.int64)
+    origin = np.zeros(3, np.int64)
+    top = np.zeros(3, np.int64)
+    back = np.zeros(3, np.int64)
     for c in range(3):
-        origin[c] = int(np.floor(lo[:, c].min())) if m else 0
+        if m:
+            origin[c] = int(np.floor(lo[:, c].min()))
     home = np.empty((m, 3), np.int64)
     reach = np.empty((m, 3), np.int64)
-    for f in prange(m):
+    for f in range(m):
         for c in range(3):
             base = int(np.floor(lo[f, c]))
             home[f, c] = base - origin[c]
             reach[f, c] = int(np.ceil(hi[f, c])) - 1 - base
-    return home, reach
+            top[c] = max(top[c], home[f, c])
+            back[c] = max(back[c], reach[f, c])
+    return home, reach, back, top + 1
 
 
 @njit(parallel=True, cache=True)
@@ -330,8 +336,14 @@ def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
                 ptr[j] += 1
             k2 = k + 1 if c2 == c else ptr[j]
             while k2 < start[c2 + 1] and z[k2] <= z[k] + reach[k, 2]:
-                if _cross_now(X, faces, fid, box, k, k2, rel_eps) if test else \
-                        (_overlap(lo, hi, k, k2) and not _shares_vertex(faces, k, k2)):
+                ok = False
+                if test:
+                    if not _boxes_apart(box, k, k2):
+                        if not _shares_vertex(faces, k, k2):
+                            ok = _cross_rest(X, faces, fid, k, k2, rel_eps)
+                elif _overlap(lo, hi, k, k2):
+                    ok = not _shares_vertex(faces, k, k2)
+                if ok:
                     if fill:
                         out[offsets[k] + n] = k2
                     n += 1
@@ -385,7 +397,9 @@ def _around(k, B, X, box, rel_eps, active, out, pos):
                     break
                 if k2 == k or (active[k2] and k2 < k):
                     continue
-                if _cross_now(X, faces, fid, box, k, k2, rel_eps):
+                if _boxes_apart(box, k, k2) or _shares_vertex(faces, k, k2):
+                    continue
+                if _cross_rest(X, faces, fid, k, k2, rel_eps):
                     if out.shape[0] > 0:
                         out[pos + n] = k2
                     n += 1
@@ -459,12 +473,13 @@ def _boxes_apart(box, a, b):
     return False
 
 
-@njit(cache=True, inline="always")
-def _cross_now(X, faces, fid, box, k, k2, rel_eps):
-    """Bucket rows k and k2 cross at positions X: closed boxes overlap, no shared corner, no
-    corner at the same position, Möller's test with the smaller face id first (as the grid
-    search orders them)."""
-    if _boxes_apart(box, k, k2) or _shares_vertex(faces, k, k2) or _welded(X, faces, k, k2):
+@njit(cache=True)
+def _cross_rest(X, faces, fid, k, k2, rel_eps):
+    """Bucket rows k and k2 (closed boxes overlapping, no shared corner) cross at positions X:
+    no corner at the same position, Möller's test with the smaller face id first (as the grid
+    search orders them). Called only after the cheap checks, written inline in the loops (numba
+    compiles those tighter than a helper)."""
+    if _welded(X, faces, k, k2):
         return False
     p, q = np.int64(k), np.int64(k2)
     if fid[q] < fid[p]:
@@ -479,4 +494,8 @@ def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
     faces, fid = B.faces, B.fid
     for k in prange(faces.shape[0]):
         for t in range(offsets[k], offsets[k + 1]):
-            hit[t] = 1 if _cross_now(X, faces, fid, box, k, partners[t], rel_eps) else 0
+            k2 = partners[t]
+            hit[t] = 0
+            if not _boxes_apart(box, k, k2):
+                if _cross_rest(X, faces, fid, k, k2, rel_eps):
+                    hit[t] = 1
