@@ -127,12 +127,14 @@ def face_terms(pos, faces, origin, normals, areas, tet):
 
 
 @njit(cache=True)
-def region_terms(inside, outside, areas, tet, r, volume, diag, between):
-    """Per region: enclosed volume (inside faces count +, outside −), shell area (``diag``) and
-    the area it shares with each other region (``between`` (r, r), inside row) — zeroed first."""
+def region_terms(inside, outside, areas, tet, volume, diag, between, touching):
+    """Per region: enclosed volume (inside faces count +, outside −), shell area (``diag``) and,
+    when regions ``touching``, the area it shares with each other region (``between`` (R, R),
+    inside row) — zeroed first."""
     volume[:] = 0.0
     diag[:] = 0.0
-    between[:, :] = 0.0
+    if touching:
+        between[:, :] = 0.0
     for f in range(inside.shape[0]):
         a, b = inside[f], outside[f]
         if a >= 0:
@@ -141,7 +143,7 @@ def region_terms(inside, outside, areas, tet, r, volume, diag, between):
         if b >= 0:
             volume[b] -= tet[f]
             diag[b] += areas[f]
-        if a >= 0 and b >= 0:
+        if touching and a >= 0 and b >= 0:
             between[a, b] += areas[f]
 
 

@@ -127,8 +127,8 @@ class VolumeRegions:
         origin = pos[0] if len(pos) else np.zeros(3)
         _gk.face_terms(pos, self.faces, origin, self.normals, self.areas, self.tet)
         volume, diag = np.zeros(self.r), np.zeros(self.r)
-        _gk.region_terms(self.inside, self.outside, self.areas, self.tet, self.r, volume, diag,
-                         self.between if self.touching else np.zeros((self.r, self.r)))
+        _gk.region_terms(self.inside, self.outside, self.areas, self.tet, volume, diag,
+                         self.between, self.touching)
         return volume, diag
 
     def offsets(self, pos: np.ndarray) -> np.ndarray:
