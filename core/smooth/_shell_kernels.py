@@ -17,10 +17,11 @@ def _angle(ax, ay, az, bx, by, bz):
 
 
 @njit(parallel=True, cache=True)
-def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_angle):
+def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_angle, angles):
     """Per face at ``pos`` (N, 3) float64: area (mm²), signed volume of the tetrahedron
     (origin, face) (mm³), turned over against the unnormalised normals ``ref`` (n · ref < 0),
-    degenerate (a repeated corner or zero area), smallest interior angle (degrees)."""
+    degenerate (a repeated corner or zero area) and, when ``angles``, the smallest interior
+    angle (degrees)."""
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
@@ -33,11 +34,19 @@ def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_a
                   + nz * (pos[a, 2] - origin[2])) / 6.0
         flipped[f] = nx * ref[f, 0] + ny * ref[f, 1] + nz * ref[f, 2] < 0.0
         degenerate[f] = a == b or b == c or a == c or area[f] <= 0.0
+        if not angles:
+            continue
         e3x, e3y, e3z = pos[c, 0] - pos[b, 0], pos[c, 1] - pos[b, 1], pos[c, 2] - pos[b, 2]
-        t0 = _angle(e1x, e1y, e1z, e2x, e2y, e2z)
-        t1 = _angle(-e1x, -e1y, -e1z, e3x, e3y, e3z)
-        t2 = _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)
-        min_angle[f] = math.degrees(min(t0, min(t1, t2)))
+        l1 = e1x * e1x + e1y * e1y + e1z * e1z  # the smallest angle faces the shortest edge
+        l2 = e2x * e2x + e2y * e2y + e2z * e2z
+        l3 = e3x * e3x + e3y * e3y + e3z * e3z
+        if l3 <= l1 and l3 <= l2:  # edge bc: the angle at a
+            t = _angle(e1x, e1y, e1z, e2x, e2y, e2z)
+        elif l2 <= l1:  # edge ca: the angle at b
+            t = _angle(-e1x, -e1y, -e1z, e3x, e3y, e3z)
+        else:  # edge ab: the angle at c
+            t = _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)
+        min_angle[f] = math.degrees(t)
 
 
 @njit(parallel=True, cache=True)

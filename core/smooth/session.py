@@ -5,22 +5,24 @@ guards, at kernel speed.
 Made once from a :class:`~anatomesh.core.model.surfaceset.SurfaceSet`: a label map's set (each
 vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets") or a set of
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
-``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings, padded
-columns, vertex → faces), the cell boxes, the regions and target volumes of the volume step, the
-fold guard's reference normals, the faces bucketed by their boxes (which pairs can cross:
-:class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`, the pairs listed from the second run on)
-and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the whole default driver — filter,
-fold guard, volume step, fold guard, untangling — for any settings.
+``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings,
+padded columns, vertex → faces), the cell boxes, the regions and target volumes of the volume
+step, the fold guard's reference normals, the faces bucketed by their boxes (which pairs can
+cross, :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the
+second run on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
+whole default driver — filter, fold guard, volume step, fold guard, untangling — for any
+settings; :meth:`SmoothingSession.smooth` adds the per-shell report.
 
 Usage (a slider)::
 
-    session = SmoothingSession(surfaces)               # once per scan
-    vertices, info = session.run("organ", lam=0.55, precision="float32")   # every move
-    smoothed, report = session.smooth("organ")        # with the per-shell report
+    session = SmoothingSession(surfaces)                                  # once per scan
+    vertices, info = session.run("organ", lam=0.55, precision="float32")  # every move
+    smoothed, report = session.smooth("organ")                            # with the report
 
-A cell box is the voxel shrunk by a hair (:attr:`SmoothingSession.margin`, 1e-4 voxel) so two
-vertices of neighbouring cells can never meet on their shared face: faces whose boxes only touch
-then cannot cross, and the candidate pairs are exact.
+A session keeps working buffers: use it from one thread at a time. A cell box is the voxel shrunk
+by a hair (:attr:`SmoothingSession.margin`, 1e-4 voxel), so two vertices of neighbouring cells
+never meet on their shared face: faces whose boxes only touch cannot cross, and testing only the
+candidate pairs is exact.
 """
 from __future__ import annotations
 
@@ -121,7 +123,7 @@ class SmoothingSession:
     def _make_regions(self) -> VolumeRegions:
         if self.has_lattice:
             fl = np.asarray(self.surfaces.face_labels, np.int64)
-            present = np.zeros(int(fl.max(initial=0)) + 1, bool)
+            present = np.zeros(max(int(fl.max(initial=0)), self.surfaces.background) + 1, bool)
             present[fl.ravel()] = True
             present[self.surfaces.background] = False
             index = np.cumsum(present) - 1

@@ -62,20 +62,20 @@ class ShellMeasures:
         self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._near: Optional[np.ndarray] = None
 
-    def _faces(self, pos: np.ndarray):
+    def _faces(self, pos: np.ndarray, angles: bool = True):
         m = self.s.n_faces
         cols = np.empty((m, 7))
-        area, tet, angle = np.empty(m), np.empty(m), np.empty(m)
+        area, tet, angle = np.empty(m), np.empty(m), np.zeros(m)
         flipped, degenerate = np.empty(m, np.bool_), np.empty(m, np.bool_)
         _k.face_measures(pos, self.s.faces, self.origin, self.reference, area, tet, flipped,
-                         degenerate, angle)
+                         degenerate, angle, angles)
         cols[:, 0], cols[:, 1], cols[:, 2], cols[:, 3] = area, tet, flipped, degenerate
         cols[:, 4], cols[:, 5], cols[:, 6] = angle, angle < 10.0, 1.0
         return cols, angle
 
     def _sums(self, pos: np.ndarray) -> np.ndarray:
         out = np.empty((len(self.values), 7))
-        _k.label_sums(self.sides, self._faces(pos)[0], _SIGNED, out)
+        _k.label_sums(self.sides, self._faces(pos, angles=False)[0], _SIGNED, out)
         return out
 
     def topology_before(self) -> List[dict]:
