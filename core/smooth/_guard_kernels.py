@@ -34,34 +34,6 @@ def folded(pos, faces, ref_normals, eps):
     return out
 
 
-@njit(parallel=True, fastmath=FAST, cache=True)
-def offset_update(src, dst, vf_offsets, vf, normals, areas, t, gain):
-    """Move each vertex by the area-weighted mean of its faces' offsets ``t_f`` along their unit
-    normals: ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain."""
-    has_gain = gain.shape[0] > 0
-    for i in prange(src.shape[0]):
-        sx = 0.0
-        sy = 0.0
-        sz = 0.0
-        sa = 0.0
-        for a in range(vf_offsets[i], vf_offsets[i + 1]):
-            f = vf[a]
-            w = areas[f] * t[f]
-            sx += w * normals[f, 0]
-            sy += w * normals[f, 1]
-            sz += w * normals[f, 2]
-            sa += areas[f]
-        px, py, pz = src[i, 0], src[i, 1], src[i, 2]
-        if sa > 0.0:
-            k = 1.0 / sa
-            if has_gain:
-                k *= gain[i]
-            px, py, pz = px + k * sx, py + k * sy, pz + k * sz
-        dst[i, 0] = px
-        dst[i, 1] = py
-        dst[i, 2] = pz
-
-
 @njit(cache=True)
 def unfold_rounds(pos, start, faces, ref, eps, vf_offsets, vf, bad, rounds, touched):
     """The fold guard's rounds, in place: move every vertex of a folded face (``bad``: the
@@ -147,10 +119,20 @@ def region_terms(inside, outside, areas, tet, volume, diag, between, touching):
             between[a, b] += areas[f]
 
 
+@njit(parallel=True, cache=True)
+def face_moves(normals, areas, lam, inside, outside, moves):
+    """``moves[f] = (A t n, A)`` with the face offset ``t = lam[inside] − lam[outside]`` along
+    the unit normal n and the area A (``lam`` (R + 1,), its last entry 0: background, −1)."""
+    for f in prange(normals.shape[0]):
+        w = areas[f] * (lam[inside[f]] - lam[outside[f]])
+        moves[f, 0], moves[f, 1], moves[f, 2] = w * normals[f, 0], w * normals[f, 1], w * normals[f, 2]
+        moves[f, 3] = areas[f]
+
+
 @njit(parallel=True, fastmath=FAST, cache=True)
-def region_offset_update(src, dst, vf_offsets, vf, normals, areas, lam, inside, outside, gain):
-    """:func:`offset_update` with the face offsets ``t_f = lam[inside_f] − lam[outside_f]``
-    (``lam`` (R + 1,), its last entry 0 for the background, index −1)."""
+def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
+    """Each vertex by the area-weighted mean of its faces' moves (:func:`face_moves`):
+    ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain."""
     has_gain = gain.shape[0] > 0
     for i in prange(src.shape[0]):
         sx = 0.0
@@ -159,11 +141,10 @@ def region_offset_update(src, dst, vf_offsets, vf, normals, areas, lam, inside, 
         sa = 0.0
         for a in range(vf_offsets[i], vf_offsets[i + 1]):
             f = vf[a]
-            w = areas[f] * (lam[inside[f]] - lam[outside[f]])
-            sx += w * normals[f, 0]
-            sy += w * normals[f, 1]
-            sz += w * normals[f, 2]
-            sa += areas[f]
+            sx += moves[f, 0]
+            sy += moves[f, 1]
+            sz += moves[f, 2]
+            sa += moves[f, 3]
         px, py, pz = src[i, 0], src[i, 1], src[i, 2]
         if sa > 0.0:
             k = 1.0 / sa

@@ -152,10 +152,11 @@ class VolumeRegions:
         arrays (:meth:`Constraint.arrays`), ``gain`` (N,) or empty. Returns the new positions
         (``pos`` or a buffer)."""
         buf = np.empty_like(pos)
+        moves = np.empty((self.faces.shape[0], 4))
         for _ in range(int(iterations)):
             lam = self.offsets(pos)
-            _gk.region_offset_update(pos, buf, s.vf_offsets, s.vf, self.normals, self.areas, lam,
-                                     self.inside, self.outside, gain)
+            _gk.face_moves(self.normals, self.areas, lam, self.inside, self.outside, moves)
+            _gk.vertex_moves(pos, buf, s.vf_offsets, s.vf, moves, gain)
             if cons[0] != 0 or cons[4] < np.inf:
                 _fk.constrain_all(buf, *cons)
             pos, buf = buf, pos
