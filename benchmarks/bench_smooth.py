@@ -12,9 +12,10 @@ pymeshlab/trimesh. The target rows run interleaved (ours, VTK, ours, VTK, ...) a
 best, so load from other processes hits both alike.
 
 Printed ratios are ours / theirs (< 1: we are faster). Targets: Taubin 20 iterations with the
-structure cached <= 0.5x vtkWindowedSincPolyDataFilter (20 iterations, 2 threads), and <= 150 ms
-(live sliders: re-smoothing after a parameter change, as ``addon/live.py`` does it: voxel-cell
-box, new λ each run; also on the 61-label TotalSegmentator map with its lattice box and junction
+structure cached <= 0.5x vtkWindowedSincPolyDataFilter (20 iterations, 2 threads); live sliders
+(a ``SmoothingSession`` kept per scan, re-run with a new λ, float32, the full guarded default:
+filter in the voxel cells, staircase passes, fold guard, volume step, untangling) <= 500 ms on
+the bone surface and <= 150 ms on the 61-label TotalSegmentator map (lattice cells, junction
 curves). Pass counts differ: one Taubin iteration
 (ours, pymeshlab) is a λ pass and a μ pass; VTK's windowed sinc and trimesh's filter_taubin do one
 Laplacian pass per iteration, so "taubin 10 it" is the like-for-like row for them.
@@ -97,22 +98,20 @@ def bench_ours(v, f, affine, repeat):
     return rows
 
 
-def live_taubin(vertices, faces, affine, lattice=None, face_groups=None):
-    """One live-slider re-smooth as ``addon/live.py`` (smooth_vertices) does it: a new λ per
-    call, Taubin 20 iterations, the voxel-cell box (built once, kept with the surface),
-    structure cached by the faces array, float32 arithmetic and output."""
+def live_session(surfaces):
+    """One live-slider re-smooth with the full guarded default, as the add-on keeps it: one
+    ``SmoothingSession`` per scan, ``run("organ", lam=..., precision="float32")`` on every move
+    (Taubin 20 it. in the voxel cells, junctions, staircase passes, fold guard, volume step,
+    untangling), a new λ each call. Returns the callable (session built and run twice first:
+    the pairs are listed from the second run on)."""
+    session = S.SmoothingSession(surfaces)
     lams = iter(np.tile(np.linspace(0.45, 0.6, 16), 1000))
-    if lattice is not None:
-        c = S.lattice_constraint(affine, lattice)
-    else:
-        c = S.voxel_constraint(affine)
 
     def run():
         lam = float(next(lams))
-        out = S.taubin(vertices, faces, iterations=20, lam=lam, mu=-min(1.0, lam + 0.03),
-                       constraint=c, face_groups=face_groups, precision="float32")
-        return np.asarray(out, np.float32)
+        return session.run("organ", lam=lam, mu=-min(1.0, lam + 0.03), precision="float32")[0]
 
+    run()
     run()
     return run
 
@@ -144,7 +143,10 @@ def interleaved(fns: dict, repeat: int) -> dict:
 
 
 def bench_targets(v, f, affine, data: Path, repeat):
-    """The two targets, interleaved with VTK: taubin 20 it cached vs vtkWindowedSinc; live."""
+    """The targets, interleaved with VTK: taubin 20 it cached vs vtkWindowedSinc; live sessions."""
+    from anatomesh.core.model.mesh import Mesh
+    from anatomesh.core.model.surfaceset import SurfaceSet
+
     s = N.structure(f, len(v))
     lams = iter(np.tile(np.linspace(0.45, 0.6, 16), 1000))  # a slider moving: new λ every run
     fns = {TAUBIN: lambda: S.taubin(v, f, iterations=20, lam=float(next(lams)), mu=-0.63,
@@ -153,17 +155,18 @@ def bench_targets(v, f, affine, data: Path, repeat):
     vtk_run = vtk_smoother(v, f)
     if vtk_run is not None:
         fns[VTK] = vtk_run
-    fns[LIVE_BONE] = live_taubin(v, f, affine)
-    ss, groups = label_map_surface(data)
-    fns[LIVE_61.format(n=ss.n_vertices)] = live_taubin(ss.vertices, ss.faces, np.asarray(ss.affine),
-                                                       ss.lattice, groups)
+    bone = SurfaceSet.from_meshes([Mesh(v, f)], affine)
+    fns[LIVE_BONE] = live_session(bone)
+    ss, _ = label_map_surface(data)
+    fns[LIVE_61.format(n=ss.n_vertices)] = live_session(ss)
     return interleaved(fns, max(repeat, 3))
 
 
 TAUBIN = "taubin 20 it, structure cached"
 VTK = f"vtkWindowedSincPolyDataFilter 20 it ({THREADS} threads)"
-LIVE_BONE = "live re-smooth: taubin 20 it + voxel box (as addon/live.py)"
-LIVE_61 = "live re-smooth: 61-label map ({n:,} v), lattice box + junctions"
+LIVE_BONE = "live re-smooth, full guarded default (session, float32): bone surface"
+LIVE_61 = "live re-smooth, full guarded default (session, float32): 61-label map ({n:,} v)"
+LIVE_TARGET = {LIVE_BONE: 500}
 
 
 def vtk_smoother(v, f):
@@ -293,7 +296,7 @@ def main():
             print(f"ratio hc / {k}: {rows['hc 20 it, cached'] / t:.2f}")
     for k, t in targets.items():
         if k.startswith("live"):
-            print(f"{k}: {1000 * t:.0f} ms (target <= 150 ms)")
+            print(f"{k}: {1000 * t:.0f} ms (target <= {LIVE_TARGET.get(k, 150)} ms)")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -385,7 +385,7 @@ def test_isosurface_mesh_stays_in_its_voxel_box_and_keeps_its_volume():
     data = (9.0 - np.linalg.norm(pos - [12.0, 12.0, 13.0], axis=1)).reshape(30, 30, 14)
     aff = np.diag([*sp, 1.0])
     mesh = isosurface(data, 0.0, affine=aff)
-    out, rep = S.smooth_surfaces(mesh, affine=aff)
+    out, rep = S.smooth_mesh(mesh, affine=aff)
     u = np.abs(out.vertices - mesh.vertices) / sp
     assert u.max() <= 0.5 + 1e-4 and u.max() > 0.05
     sh = rep.shells[0]
@@ -400,7 +400,7 @@ def test_max_deviation_is_a_hard_bound_and_honest_distance_is_reported():
     d = np.linalg.norm(out - v, axis=1)
     assert d.max() <= 0.07 + 1e-9 and d.max() > 0.069
     m = Mesh(v, f)
-    out2, rep = S.smooth_surfaces(m, "laplacian", iterations=50, lam=0.9, max_deviation=0.07)
+    out2, rep = S.smooth_mesh(m, "laplacian", iterations=50, lam=0.9, max_deviation=0.07)
     assert rep.shells[0]["max_displacement_mm"] <= 0.07 + 1e-6
     assert 0 < rep.shells[0]["hausdorff_mm"] <= 0.07 + 1e-6
 
@@ -577,7 +577,7 @@ def spiky_bipyramid(k=13, seed=3):
 def test_padded_columns_sum_every_neighbour_through_helper_columns(k):
     """Apexes of valence 13 (a chain of two helper columns) and 30 (a chain of eight): the
     padded columns plus the helper sums give exactly the sum over every 1-ring neighbour."""
-    from anatomesh.core.smooth import _kernels as K
+    from anatomesh.core.smooth import _pass_kernels as K
 
     v, f = spiky_bipyramid(k)
     n = len(v)
@@ -739,5 +739,7 @@ def test_bad_inputs_raise_anatomesh_errors():
         S.laplacian(v, f, constraint=S.Constraint("box", center=np.zeros((3, 3))))
     with pytest.raises(AnatomeshError, match="iterationz"):
         S.smooth(v, f, "taubin", iterationz=3)  # noqa
-    with pytest.raises(AnatomeshError, match="SurfaceSet or a Mesh"):
+    with pytest.raises(AnatomeshError, match="needs a SurfaceSet"):
         S.smooth_surfaces((v, f))
+    with pytest.raises(AnatomeshError, match="needs a Mesh"):
+        S.smooth_mesh((v, f))

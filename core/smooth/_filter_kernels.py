@@ -1,21 +1,22 @@
-"""Numba kernels for :mod:`anatomesh.core.smooth.driver` (private: no input checks here).
+"""Numba kernels of the smoothing filters (private to ``core/smooth``: no input checks here).
 
 Conventions shared by every kernel
 ----------------------------------
 * positions are float64 (N, 3) in mm; a pass reads ``src`` and writes ``dst`` (Jacobi update,
-  Mönch et al. 2012), so every vertex sees its neighbours' positions of the previous pass
-  (the uniform fast path at the end of this module uses a column layout instead, see there);
+  Mönch et al. 2012, "Interactive mesh smoothing for medical applications"), so every vertex
+  sees its neighbours' positions of the previous pass;
 * neighbourhoods are CSR ``(offsets (N+1,) int64, nbr (R,) int32)``;
 * ``gain`` (N,) scales each vertex's displacement (distance-aware damping); empty = 1 everywhere;
 * ``axis`` (3, 3) maps a displacement before it is applied (``use_axis``), e.g. a projector onto
   the slice axis for staircase smoothing;
-* the constraint, applied by :func:`constrain_all` after every pass: ``kind`` 0 none, 1 box, 2 diamond (L1 ball); the box
-  or diamond is centred on ``center[i]`` and expressed in a normalised linear frame:
-  ``u = frame @ (p − c)`` must satisfy ``max |u_k| <= 1`` (box) or ``sum |u_k| <= 1``
-  (diamond); a point outside is moved to the nearest point of the set in u coordinates and
-  mapped back with ``frame_inv``. Then, when ``radius`` is finite, ``|p − start[i]| <= radius`` is enforced
-  by pulling the point straight towards ``start[i]`` (both sets are convex and contain their
-  centre, so the result satisfies both when ``center == start``).
+* the constraint, applied by :func:`constrain_all` after every pass: ``kind`` 0 none, 1 box, 2
+  diamond (L1 ball); the box or diamond is centred on ``center[i]`` and expressed in a
+  normalised linear frame: ``u = frame @ (p − c)`` must satisfy ``max |u_k| <= 1`` (box) or
+  ``sum |u_k| <= 1`` (diamond); a point outside is moved to the nearest point of the set in u
+  coordinates and mapped back with ``frame_inv``. Then, when ``radius`` is finite,
+  ``|p − start[i]| <= radius`` is enforced by pulling the point straight towards ``start[i]``
+  (both sets are convex and contain their centre, so the result satisfies both when
+  ``center == start``).
 """
 from __future__ import annotations
 
@@ -33,18 +34,9 @@ WEIGHT_UNIFORM = 0
 WEIGHT_INVERSE_LENGTH = 1
 WEIGHT_GIVEN = 2
 
-#: width of the padded neighbour rows (``MeshStructure.padded``): a compile-time constant, so
-#: the neighbour loop unrolls; 97 % of marching-cubes vertices have at most 8 neighbours, the
-#: rest are read from the CSR
-PAD_WIDTH = 8
-#: width of the helper columns' lists (``MeshStructure.padded``): a row longer than PAD_WIDTH
-#: keeps 7 neighbours in its columns; on a marching-cubes surface such rows have 9.4 on
-#: average, so a helper sums 2.4 and 4 slots rarely need a chain
-EXT_WIDTH = 4
-
 
 @njit(cache=True, inline="always")
-def _project_l1(w0, w1, w2):
+def project_l1(w0, w1, w2):
     """Euclidean projection of (w0, w1, w2) onto the unit L1 ball (Duchi et al. 2008)."""
     a0, a1, a2 = abs(w0), abs(w1), abs(w2)
     if a0 + a1 + a2 <= 1.0:
@@ -69,7 +61,7 @@ def _project_l1(w0, w1, w2):
 
 
 @njit(cache=True, inline="always")
-def _constrain(i, px, py, pz, kind, center, frame, frame_inv, radius, start):
+def constrain_one(i, px, py, pz, kind, center, frame, frame_inv, radius, start):
     if kind != 0:
         cx, cy, cz = center[i, 0], center[i, 1], center[i, 2]
         dx, dy, dz = px - cx, py - cy, pz - cz
@@ -85,7 +77,7 @@ def _constrain(i, px, py, pz, kind, center, frame, frame_inv, radius, start):
                 u2 = min(1.0, max(-1.0, u2))
         elif abs(u0) + abs(u1) + abs(u2) > 1.0:
             inside = False
-            u0, u1, u2 = _project_l1(u0, u1, u2)
+            u0, u1, u2 = project_l1(u0, u1, u2)
         if not inside:
             px = cx + frame_inv[0, 0] * u0 + frame_inv[0, 1] * u1 + frame_inv[0, 2] * u2
             py = cy + frame_inv[1, 0] * u0 + frame_inv[1, 1] * u1 + frame_inv[1, 2] * u2
@@ -104,7 +96,7 @@ def _constrain(i, px, py, pz, kind, center, frame, frame_inv, radius, start):
 def constrain_all(pos, kind, center, frame, frame_inv, radius, start):
     """Apply the constraint to every vertex in place (after every smoothing pass)."""
     for i in prange(pos.shape[0]):
-        px, py, pz = _constrain(i, pos[i, 0], pos[i, 1], pos[i, 2], kind, center, frame,
+        px, py, pz = constrain_one(i, pos[i, 0], pos[i, 1], pos[i, 2], kind, center, frame,
                                 frame_inv, radius, start)
         pos[i, 0] = px
         pos[i, 1] = py
@@ -115,8 +107,8 @@ def constrain_all(pos, kind, center, frame, frame_inv, radius, start):
 def umbrella_pass(src, dst, offsets, nbr, weights, mode, factor, gain, axis, use_axis):
     """One Laplacian (umbrella) pass: ``dst_i = src_i + factor * Σ w_ij (src_j − src_i) / Σ w_ij``.
 
-    ``mode`` picks the weights: 0 uniform (seed eq. 6.5), 1 inverse edge length (Fujiwara
-    1995), 2 ``weights`` per CSR entry (e.g. cotangents, Desbrun et al. 1999; seed eq. 6.6).
+    ``mode`` picks the weights: 0 uniform, 1 inverse edge length (Fujiwara
+    1995), 2 ``weights`` per CSR entry (e.g. cotangents, Desbrun et al. 1999).
     A vertex with an empty ring, or whose weights sum to <= 0, does not move.
     """
     n = src.shape[0]
@@ -436,227 +428,3 @@ def nearest_other_group(points, groups, cell, origin, dims, sorted_keys, order):
                             best2 = d2
         out[i] = math.sqrt(best2)
     return out
-
-
-# ---------------------------------------------------------------------------------------------
-# fold guard
-# ---------------------------------------------------------------------------------------------
-@njit(parallel=True, fastmath=FAST, cache=True)
-def folded(pos, faces, ref_normals, eps):
-    """Faces whose normal (unnormalised) has turned by 90° or more from ``ref_normals``, or
-    collapsed: ``n · n_ref <= eps |n_ref|²``. Faces with a zero reference normal never count."""
-    m = faces.shape[0]
-    out = np.zeros(m, np.bool_)
-    for f in prange(m):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
-        rx, ry, rz = ref_normals[f, 0], ref_normals[f, 1], ref_normals[f, 2]
-        r2 = rx * rx + ry * ry + rz * rz
-        if r2 > 0.0 and nx * rx + ny * ry + nz * rz <= eps * r2:
-            out[f] = True
-    return out
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def offset_update(src, dst, vf_offsets, vf, normals, areas, t, gain):
-    """Move each vertex by the area-weighted mean of its faces' offsets ``t_f`` along their unit
-    normals: ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain."""
-    has_gain = gain.shape[0] > 0
-    for i in prange(src.shape[0]):
-        sx = 0.0
-        sy = 0.0
-        sz = 0.0
-        sa = 0.0
-        for a in range(vf_offsets[i], vf_offsets[i + 1]):
-            f = vf[a]
-            w = areas[f] * t[f]
-            sx += w * normals[f, 0]
-            sy += w * normals[f, 1]
-            sz += w * normals[f, 2]
-            sa += areas[f]
-        px, py, pz = src[i, 0], src[i, 1], src[i, 2]
-        if sa > 0.0:
-            k = 1.0 / sa
-            if has_gain:
-                k *= gain[i]
-            px, py, pz = px + k * sx, py + k * sy, pz + k * sz
-        dst[i, 0] = px
-        dst[i, 1] = py
-        dst[i, 2] = pz
-
-
-# ---------------------------------------------------------------------------------------------
-# fast uniform umbrella passes on padded columns (the Taubin/Laplacian hot path)
-# ---------------------------------------------------------------------------------------------
-# Layout: positions are "structure of arrays" P (3, N + 1) — a row per coordinate, column N zero
-# (the pad) — and neighbours are padded columns ``cols`` (width, N) uint32 (column-major
-# ELLPACK, see ``MeshStructure.padded``). The pass loop then has a fixed trip count and no
-# branch, and LLVM turns it into SIMD gathers over several vertices at once (about 2x less
-# CPU than a row-per-vertex layout). It runs in float32 (live sliders) or float64 alike.
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def to_columns(src, m, dst):
-    """``dst[:, i] = m @ src[i]`` for every row of ``src`` (N, 3) into ``dst`` (3, ≥ N): a
-    linear change of frame and the switch to the column layout, in parallel."""
-    for i in prange(src.shape[0]):
-        x, y, z = src[i, 0], src[i, 1], src[i, 2]
-        dst[0, i] = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z
-        dst[1, i] = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z
-        dst[2, i] = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def from_columns(src, m, dst):
-    """``dst[i] = m @ src[:, i]`` for every row of ``dst`` (N, 3): back from the column layout."""
-    for i in prange(dst.shape[0]):
-        x, y, z = src[0, i], src[1, i], src[2, i]
-        dst[i, 0] = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z
-        dst[i, 1] = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z
-        dst[i, 2] = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z
-
-
-@njit(cache=True, inline="always")
-def _move(i, x, y, z, sx, sy, sz, k, e, gain, axis, C, S, r2, metric):
-    """The new position of vertex ``i`` at (x, y, z) whose neighbours sum to (sx, sy, sz):
-    ``p + axis @ (gain_i (k s − e p))``, clamped to the unit box around ``C[:, i]`` (the
-    constraint's normalised frame) and then pulled towards ``S[:, i]`` until
-    ``|metric @ (p − S_i)|² <= r2``. ``gain``, ``axis``, ``C``, ``S`` may each be None: numba
-    then compiles that step out (a kernel per combination), and the rest stays branch-free
-    but for the cap's select, so the pass loop vectorises."""
-    dx = k * sx - e * x
-    dy = k * sy - e * y
-    dz = k * sz - e * z
-    if gain is not None:
-        g = gain[i]
-        dx, dy, dz = g * dx, g * dy, g * dz
-    if axis is not None:
-        dx, dy, dz = (axis[0, 0] * dx + axis[0, 1] * dy + axis[0, 2] * dz,
-                      axis[1, 0] * dx + axis[1, 1] * dy + axis[1, 2] * dz,
-                      axis[2, 0] * dx + axis[2, 1] * dy + axis[2, 2] * dz)
-    px, py, pz = x + dx, y + dy, z + dz
-    if C is not None:
-        one = C.dtype.type(1)  # a literal 1 would turn float32 into float64
-        cx, cy, cz = C[0, i], C[1, i], C[2, i]
-        px = min(max(px, cx - one), cx + one)
-        py = min(max(py, cy - one), cy + one)
-        pz = min(max(pz, cz - one), cz + one)
-    if S is not None:
-        px, py, pz = _cap(i, px, py, pz, S, r2, metric)
-    return px, py, pz
-
-
-@njit(cache=True, inline="always")
-def _cap(i, px, py, pz, S, r2, metric):
-    """Pull (px, py, pz) straight towards ``S[:, i]`` until ``|metric @ (p − S_i)|² <= r2``
-    (metric maps frame offsets to mm; linear maps keep lines and ratios)."""
-    sx, sy, sz = S[0, i], S[1, i], S[2, i]
-    ux, uy, uz = px - sx, py - sy, pz - sz
-    mx = metric[0, 0] * ux + metric[0, 1] * uy + metric[0, 2] * uz
-    my = metric[1, 0] * ux + metric[1, 1] * uy + metric[1, 2] * uz
-    mz = metric[2, 0] * ux + metric[2, 1] * uy + metric[2, 2] * uz
-    d2 = mx * mx + my * my + mz * mz
-    if d2 > r2:
-        t = math.sqrt(r2 / d2)
-        px, py, pz = sx + ux * t, sy + uy * t, sz + uz * t
-    return px, py, pz
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def helper_sums(P, ext, level_at, n):
-    """Fill the helper columns ``P[:, n + 1 + h]`` of long rows (see
-    ``_neighbors_kernels.padded_columns``) with the sums of ``P`` over ``ext[:, h]``, level by
-    level (a chained helper is summed before the one that reads it)."""
-    zero = P[0, n]
-    for level in range(level_at.shape[0] - 1):
-        for h in prange(level_at[level], level_at[level + 1]):
-            sx = zero
-            sy = zero
-            sz = zero
-            for a in range(EXT_WIDTH):
-                j = ext[a, h]
-                sx += P[0, j]
-                sy += P[1, j]
-                sz += P[2, j]
-            P[0, n + 1 + h] = sx
-            P[1, n + 1 + h] = sy
-            P[2, n + 1 + h] = sz
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def padded_pass(P, Q, cols, inv_count, factor, gain, axis, C, S, r2, metric):
-    """One uniform umbrella pass ``Q_i = P_i + factor (mean(P_j) − P_i)`` over padded columns
-    (helper columns of ``P`` already summed, :func:`helper_sums`) with the gain, axis map, box
-    and cap fused in (:func:`_move`). ``P``, ``Q``: (3, ≥ N + 1), column N zero; ``C``, ``S``:
-    (3, ≥ N) or None."""
-    n = cols.shape[1]
-    zero = P[0, n]
-    for i in prange(n):
-        sx = zero
-        sy = zero
-        sz = zero
-        for a in range(PAD_WIDTH):  # a constant trip count: unrolled, then vectorised over i
-            j = cols[a, i]
-            sx += P[0, j]
-            sy += P[1, j]
-            sz += P[2, j]
-        c = inv_count[i]
-        e = factor if c > zero else zero
-        px, py, pz = _move(i, P[0, i], P[1, i], P[2, i], sx, sy, sz, factor * c, e, gain, axis,
-                           C, S, r2, metric)
-        Q[0, i] = px
-        Q[1, i] = py
-        Q[2, i] = pz
-
-
-@njit(parallel=True, fastmath=FAST, cache=True)
-def constrain_columns(Q, n, C, S, r2, metric, diamond):
-    """The constraint in place on the first ``n`` columns of ``Q``: the unit box or, when
-    ``diamond``, the unit L1 ball around ``C[:, i]`` (``C`` None: neither); then the cap of
-    :func:`_cap` (``S`` None: none)."""
-    for i in prange(n):
-        px, py, pz = Q[0, i], Q[1, i], Q[2, i]
-        if C is not None:
-            cx, cy, cz = C[0, i], C[1, i], C[2, i]
-            if diamond:
-                u0, u1, u2 = _project_l1(px - cx, py - cy, pz - cz)
-                px, py, pz = cx + u0, cy + u1, cz + u2
-            else:
-                one = C.dtype.type(1)
-                px = min(max(px, cx - one), cx + one)
-                py = min(max(py, cy - one), cy + one)
-                pz = min(max(pz, cz - one), cz + one)
-        if S is not None:
-            px, py, pz = _cap(i, px, py, pz, S, r2, metric)
-        Q[0, i] = px
-        Q[1, i] = py
-        Q[2, i] = pz
-
-
-@njit(cache=True)
-def padded_passes(a, b, cols, inv_count, ext, level_at, factors, on_axis, gain, axis, diamond,
-                  C, S, r2, metric):
-    """Run ``len(factors)`` passes alternating between ``a`` and ``b`` (pass ``p`` uses
-    ``factors[p]`` and the axis map when ``on_axis[p]``), in one call: no Python work between
-    passes. ``diamond``: ``C`` is the centre of diamonds, applied after each pass
-    (:func:`constrain_columns`), not of boxes. Returns 0 when the result is in ``a``, 1 when
-    in ``b``."""
-    n = cols.shape[1]
-    for p in range(factors.shape[0]):
-        src, dst = (a, b) if p % 2 == 0 else (b, a)
-        helper_sums(src, ext, level_at, n)
-        f = factors[p]
-        if diamond:
-            if on_axis[p]:
-                padded_pass(src, dst, cols, inv_count, f, gain, axis, None, None, r2, metric)
-            else:
-                padded_pass(src, dst, cols, inv_count, f, gain, None, None, None, r2, metric)
-            constrain_columns(dst, n, C, S, r2, metric, True)
-        elif on_axis[p]:
-            padded_pass(src, dst, cols, inv_count, f, gain, axis, C, S, r2, metric)
-        else:
-            padded_pass(src, dst, cols, inv_count, f, gain, None, C, S, r2, metric)
-    return factors.shape[0] % 2

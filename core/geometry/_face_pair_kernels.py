@@ -1,0 +1,503 @@
+"""Numba kernels for :mod:`anatomesh.core.geometry.face_pairs` (private: no input checks here).
+
+* :func:`tri_tri` — Möller 1997 ("A fast triangle-triangle intersection test") on scalars, no
+  temporary arrays: the same arithmetic, in the same order, as
+  ``_intersect_kernels.tri_tri_intersect`` (so the same answer bit for bit), ~20x faster.
+* :func:`bucket_faces` — faces bucketed by the cell of their extent's low corner (columns
+  (x, y) in a dense table, z sorted inside a column);
+* :func:`sweep_csr` — a sweep over the buckets: the candidate pairs, or the crossing ones;
+* :func:`active_crossings` — crossings around a few faces, both directions;
+* :func:`test_pairs` — crossing test over listed candidate pairs.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+# ---------------------------------------------------------------------------------------------
+# triangle-triangle test on scalars (Möller 1997), the arithmetic of tri_tri_intersect
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(cache=True, inline="always")
+def _dot(ax, ay, az, bx, by, bz):
+    return ax * bx + ay * by + az * bz
+
+
+@njit(cache=True)
+def _interval(p0, p1, p2, d0, d1, d2):
+    """Interval of a triangle on the intersection line: (lo, hi, coplanar)."""
+    if d0 * d1 > 0.0:
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    elif d0 * d2 > 0.0:
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d1 * d2 > 0.0 or d0 != 0.0:
+        a = p0 + (p1 - p0) * d0 / (d0 - d1)
+        b = p0 + (p2 - p0) * d0 / (d0 - d2)
+    elif d1 != 0.0:
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d2 != 0.0:
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    else:
+        return 0.0, 0.0, True
+    if a > b:
+        a, b = b, a
+    return a, b, False
+
+
+@njit(cache=True, inline="always")
+def _orient(px, py, qx, qy, rx, ry):
+    return (qx - px) * (ry - py) - (qy - py) * (rx - px)
+
+
+@njit(cache=True)
+def _segments_cross(a0, a1, b0, b1, c0, c1, d0, d1):
+    """2D segments (a, b) and (c, d) cross properly."""
+    o1 = _orient(a0, a1, b0, b1, c0, c1)
+    o2 = _orient(a0, a1, b0, b1, d0, d1)
+    o3 = _orient(c0, c1, d0, d1, a0, a1)
+    o4 = _orient(c0, c1, d0, d1, b0, b1)
+    return ((o1 > 0 and o2 < 0) or (o1 < 0 and o2 > 0)) and \
+        ((o3 > 0 and o4 < 0) or (o3 < 0 and o4 > 0))
+
+
+@njit(cache=True)
+def _inside_2d(p0, p1, T):
+    """Point (p0, p1) in the 2D triangle T (3, 2), boundary included."""
+    d1 = (T[1, 0] - T[0, 0]) * (p1 - T[0, 1]) - (T[1, 1] - T[0, 1]) * (p0 - T[0, 0])
+    d2 = (T[2, 0] - T[1, 0]) * (p1 - T[1, 1]) - (T[2, 1] - T[1, 1]) * (p0 - T[1, 0])
+    d3 = (T[0, 0] - T[2, 0]) * (p1 - T[2, 1]) - (T[0, 1] - T[2, 1]) * (p0 - T[2, 0])
+    neg = d1 < 0 or d2 < 0 or d3 < 0
+    pos = d1 > 0 or d2 > 0 or d3 > 0
+    return not (neg and pos)
+
+
+@njit(cache=True)
+def _coplanar(nx, ny, nz, X, a0, a1, a2, b0, b1, b2):
+    """Coplanar triangles (rows a*, b* of ``X``) overlap, projected on the axis plane where
+    they have the largest area (rare: arrays allowed)."""
+    V = np.empty((3, 3))
+    U = np.empty((3, 3))
+    for c in range(3):
+        V[0, c], V[1, c], V[2, c] = X[a0, c], X[a1, c], X[a2, c]
+        U[0, c], U[1, c], U[2, c] = X[b0, c], X[b1, c], X[b2, c]
+    ax, ay, az = abs(nx), abs(ny), abs(nz)
+    if ax >= ay and ax >= az:
+        i0, i1 = 1, 2
+    elif ay >= az:
+        i0, i1 = 0, 2
+    else:
+        i0, i1 = 0, 1
+    P = np.empty((3, 2))
+    Q = np.empty((3, 2))
+    o0, o1 = V[0, i0], V[0, i1]
+    for k in range(3):  # relative to V's first corner, as tri_tri_intersect
+        P[k, 0], P[k, 1] = V[k, i0] - o0, V[k, i1] - o1
+        Q[k, 0], Q[k, 1] = U[k, i0] - o0, U[k, i1] - o1
+    for a in range(3):
+        for b in range(3):
+            if _segments_cross(P[a, 0], P[a, 1], P[(a + 1) % 3, 0], P[(a + 1) % 3, 1],
+                               Q[b, 0], Q[b, 1], Q[(b + 1) % 3, 0], Q[(b + 1) % 3, 1]):
+                return True
+    cp0 = (P[0, 0] + P[1, 0] + P[2, 0]) / 3.0
+    cp1 = (P[0, 1] + P[1, 1] + P[2, 1]) / 3.0
+    cq0 = (Q[0, 0] + Q[1, 0] + Q[2, 0]) / 3.0
+    cq1 = (Q[0, 1] + Q[1, 1] + Q[2, 1]) / 3.0
+    return _inside_2d(cp0, cp1, Q) or _inside_2d(cq0, cq1, P)
+
+
+@njit(cache=True)
+def _near_zero(x, eps):
+    return 0.0 if abs(x) < eps else x
+
+
+@njit(cache=True)
+def tri_tri(X, a0, a1, a2, b0, b1, b2, rel_eps):
+    """Do the triangles of rows (a0, a1, a2) and (b0, b1, b2) of ``X`` (N, 3) float64
+    intersect? Möller 1997; touching counts (plane distances below ``rel_eps`` times the size
+    are zero). Coordinates relative to the first corner, as ``tri_tri_intersect``."""
+    ox, oy, oz = X[a0, 0], X[a0, 1], X[a0, 2]
+    v0x, v0y, v0z = X[a0, 0] - ox, X[a0, 1] - oy, X[a0, 2] - oz
+    v1x, v1y, v1z = X[a1, 0] - ox, X[a1, 1] - oy, X[a1, 2] - oz
+    v2x, v2y, v2z = X[a2, 0] - ox, X[a2, 1] - oy, X[a2, 2] - oz
+    u0x, u0y, u0z = X[b0, 0] - ox, X[b0, 1] - oy, X[b0, 2] - oz
+    u1x, u1y, u1z = X[b1, 0] - ox, X[b1, 1] - oy, X[b1, 2] - oz
+    u2x, u2y, u2z = X[b2, 0] - ox, X[b2, 1] - oy, X[b2, 2] - oz
+    size = 0.0
+    size = max(size, abs(v1x) + abs(v1y) + abs(v1z))
+    size = max(size, abs(v2x) + abs(v2y) + abs(v2z))
+    size = max(size, abs(u0x) + abs(u0y) + abs(u0z))
+    size = max(size, abs(u1x) + abs(u1y) + abs(u1z))
+    size = max(size, abs(u2x) + abs(u2y) + abs(u2z))
+    n1x, n1y, n1z = _cross(v1x - v0x, v1y - v0y, v1z - v0z, v2x - v0x, v2y - v0y, v2z - v0z)
+    ln1 = np.sqrt(_dot(n1x, n1y, n1z, n1x, n1y, n1z))
+    if ln1 == 0.0:
+        return False
+    d1 = -_dot(n1x, n1y, n1z, v0x, v0y, v0z)
+    eps1 = rel_eps * ln1 * size
+    du0 = _near_zero(_dot(n1x, n1y, n1z, u0x, u0y, u0z) + d1, eps1)
+    du1 = _near_zero(_dot(n1x, n1y, n1z, u1x, u1y, u1z) + d1, eps1)
+    du2 = _near_zero(_dot(n1x, n1y, n1z, u2x, u2y, u2z) + d1, eps1)
+    if du0 * du1 > 0.0 and du0 * du2 > 0.0:
+        return False
+    n2x, n2y, n2z = _cross(u1x - u0x, u1y - u0y, u1z - u0z, u2x - u0x, u2y - u0y, u2z - u0z)
+    ln2 = np.sqrt(_dot(n2x, n2y, n2z, n2x, n2y, n2z))
+    if ln2 == 0.0:
+        return False
+    d2 = -_dot(n2x, n2y, n2z, u0x, u0y, u0z)
+    eps2 = rel_eps * ln2 * size
+    dv0 = _near_zero(_dot(n2x, n2y, n2z, v0x, v0y, v0z) + d2, eps2)
+    dv1 = _near_zero(_dot(n2x, n2y, n2z, v1x, v1y, v1z) + d2, eps2)
+    dv2 = _near_zero(_dot(n2x, n2y, n2z, v2x, v2y, v2z) + d2, eps2)
+    if dv0 * dv1 > 0.0 and dv0 * dv2 > 0.0:
+        return False
+    if du0 == 0.0 and du1 == 0.0 and du2 == 0.0:
+        return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)
+    k = _line_axis(n1x, n1y, n1z, n2x, n2y, n2z)
+    s0, s1, cop = _interval(_pick(k, v0x, v0y, v0z), _pick(k, v1x, v1y, v1z),
+                            _pick(k, v2x, v2y, v2z), dv0, dv1, dv2)
+    if cop:
+        return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)
+    t0, t1, cop = _interval(_pick(k, u0x, u0y, u0z), _pick(k, u1x, u1y, u1z),
+                            _pick(k, u2x, u2y, u2z), du0, du1, du2)
+    if cop:
+        return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)
+    return not (s1 < t0 or t1 < s0)
+
+
+@njit(cache=True, inline="always")
+def _pick(k, x, y, z):
+    return x if k == 0 else (y if k == 1 else z)
+
+
+@njit(cache=True)
+def _line_axis(n1x, n1y, n1z, n2x, n2y, n2z):
+    """Axis of the largest component of the planes' common direction (first on ties)."""
+    ddx, ddy, ddz = _cross(n1x, n1y, n1z, n2x, n2y, n2z)
+    ad0, ad1, ad2 = abs(ddx), abs(ddy), abs(ddz)
+    k = 0
+    best = ad0
+    if ad1 > best:
+        k = 1
+        best = ad1
+    if ad2 > best:
+        k = 2
+    return k
+
+
+# ---------------------------------------------------------------------------------------------
+# static candidate pairs: buckets by the cell of each face's extent's low corner
+# ---------------------------------------------------------------------------------------------
+@njit(parallel=True, cache=True)
+def extents(centres, faces, half):
+    """``(lo, hi)`` (M, 3): bounding box of each face's corner boxes ``centre ± half``."""
+    m = faces.shape[0]
+    lo = np.empty((m, 3))
+    hi = np.empty((m, 3))
+    for f in prange(m):
+        for c in range(3):
+            x0, x1, x2 = centres[faces[f, 0], c], centres[faces[f, 1], c], centres[faces[f, 2], c]
+            lo[f, c] = min(x0, min(x1, x2)) - half[c]
+            hi[f, c] = max(x0, max(x1, x2)) + half[c]
+    return lo, hi
+
+
+@njit(cache=True)
+def homes(lo, hi):
+    """Home cell ``floor(lo)`` shifted to start at 0, and how far up (in cells) a partner's home
+    may lie, ``ceil(hi) − 1 − floor(lo)``, per face; with the largest reach ``back`` and the home
+    cells per axis ``dims``: ``(home, reach (M, 3), back, dims (3,))`` int64."""
+    m = lo.shape[0]
+    origin = np.zeros(3, np.int64)
+    top = np.zeros(3, np.int64)
+    back = np.zeros(3, np.int64)
+    for c in range(3):
+        if m:
+            origin[c] = int(np.floor(lo[:, c].min()))
+    home = np.empty((m, 3), np.int64)
+    reach = np.empty((m, 3), np.int64)
+    for f in range(m):
+        for c in range(3):
+            base = int(np.floor(lo[f, c]))
+            home[f, c] = base - origin[c]
+            reach[f, c] = int(np.ceil(hi[f, c])) - 1 - base
+            top[c] = max(top[c], home[f, c])
+            back[c] = max(back[c], reach[f, c])
+    return home, reach, back, top + 1
+
+
+@njit(parallel=True, cache=True)
+def permuted(order, lo, hi, home, reach, faces):
+    """The rows of the five arrays in ``order`` (bucket order), in parallel."""
+    m = order.shape[0]
+    lo2, hi2 = np.empty_like(lo), np.empty_like(hi)
+    home2, reach2, faces2 = np.empty_like(home), np.empty_like(reach), np.empty_like(faces)
+    for k in prange(m):
+        f = order[k]
+        for c in range(3):
+            lo2[k, c], hi2[k, c] = lo[f, c], hi[f, c]
+            home2[k, c], reach2[k, c], faces2[k, c] = home[f, c], reach[f, c], faces[f, c]
+    return lo2, hi2, home2, reach2, faces2
+
+
+@njit(cache=True)
+def bucket_faces(home, dims):
+    """Faces sorted by column ``(x, y)`` of their ``home`` cell (M, 3) int64 in [0, dims), then
+    by z and index: ``(start (Dx*Dy + 1,) int64, order (M,) int64, z (M,) int64)``."""
+    m = home.shape[0]
+    ncol = dims[0] * dims[1]
+    start = np.zeros(ncol + 1, np.int64)
+    for f in range(m):
+        start[home[f, 0] * dims[1] + home[f, 1] + 1] += 1
+    for c in range(ncol):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(m, np.int64)
+    for f in range(m):
+        c = home[f, 0] * dims[1] + home[f, 1]
+        order[fill[c]] = f
+        fill[c] += 1
+    z = np.empty(m, np.int64)
+    for c in range(ncol):  # insertion sort by z (columns are short; equal z keep index order)
+        for k in range(start[c], start[c + 1]):
+            f = order[k]
+            zf = home[f, 2]
+            j = k
+            while j > start[c] and z[j - 1] > zf:
+                z[j] = z[j - 1]
+                order[j] = order[j - 1]
+                j -= 1
+            z[j] = zf
+            order[j] = f
+    return start, order, z
+
+
+@njit(cache=True, inline="always")
+def _shares_vertex(faces, a, b):
+    for x in range(3):
+        for y in range(3):
+            if faces[a, x] == faces[b, y]:
+                return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _overlap(lo, hi, a, b):
+    """Extents a and b (rows of lo, hi) overlap with positive volume."""
+    return lo[b, 0] < hi[a, 0] and lo[a, 0] < hi[b, 0] and lo[b, 1] < hi[a, 1] and \
+        lo[a, 1] < hi[b, 1] and lo[b, 2] < hi[a, 2] and lo[a, 2] < hi[b, 2]
+
+
+@njit(cache=True)
+def _forward_columns(c, dims, back):
+    """Neighbour columns of column c whose index is >= c (the forward half), with their
+    offsets: (column, dx, dy) rows."""
+    x, y = c // dims[1], c % dims[1]
+    out = np.empty(((back[0] + 1) * (2 * back[1] + 1), 3), np.int64)
+    n = 0
+    for dx in range(0, back[0] + 1):
+        for dy in range(-back[1], back[1] + 1):
+            if (dx == 0 and dy < 0) or x + dx >= dims[0] or not 0 <= y + dy < dims[1]:
+                continue
+            out[n, 0], out[n, 1], out[n, 2] = (x + dx) * dims[1] + y + dy, dx, dy
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True)
+def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
+    """The pairs whose first face (bucket row) sits in column c: rows of the forward columns
+    whose homes fall in its window (z by pointers that only move up), sharing no vertex. ``X``
+    empty: those whose extents overlap with positive volume (the candidates); else those that
+    cross at positions ``X`` (closed boxes ``box`` overlap, no corner at the same position,
+    Möller; a crossing pair's extents overlap, the window holds every candidate). Counts into ``counts[row]`` or, when ``out`` has entries, writes partner rows from
+    ``offsets[row]`` (rows without count skipped)."""
+    start, z, lo, hi, reach, faces, fid = B.start, B.z, B.lo, B.hi, B.reach, B.faces, B.fid
+    nb = _forward_columns(c, B.dims, B.back)
+    ptr = np.empty(nb.shape[0], np.int64)
+    for j in range(nb.shape[0]):
+        ptr[j] = start[nb[j, 0]]
+    fill, test = out.shape[0] > 0, X.shape[0] > 0
+    for k in range(start[c], start[c + 1]):
+        if fill and counts[k] == 0:
+            continue
+        n = 0
+        for j in range(nb.shape[0]):
+            c2, dx, dy = nb[j, 0], nb[j, 1], nb[j, 2]
+            if dx > reach[k, 0] or dy > reach[k, 1]:
+                continue
+            while ptr[j] < start[c2 + 1] and z[ptr[j]] < z[k] - B.back[2]:
+                ptr[j] += 1
+            k2 = k + 1 if c2 == c else ptr[j]
+            while k2 < start[c2 + 1] and z[k2] <= z[k] + reach[k, 2]:
+                ok = False
+                if test:
+                    if not _boxes_apart(box, k, k2):
+                        if not _shares_vertex(faces, k, k2):
+                            ok = _cross_rest(X, faces, fid, k, k2, rel_eps)
+                elif _overlap(lo, hi, k, k2):
+                    ok = not _shares_vertex(faces, k, k2)
+                if ok:
+                    if fill:
+                        out[offsets[k] + n] = k2
+                    n += 1
+                k2 += 1
+        if not fill:
+            counts[k] = n
+
+
+@njit(parallel=True, cache=True)
+def sweep_csr(B, X, box, rel_eps):
+    """CSR over bucket rows ``(offsets (M + 1,), partner rows int32)`` of :func:`_column_sweep`
+    over all columns: candidate pairs (``X`` empty) or crossing pairs (each pair once)."""
+    m = B.faces.shape[0]
+    ncol = B.start.shape[0] - 1
+    counts = np.zeros(m, np.int64)
+    none = np.zeros(0, np.int32)
+    for c in prange(ncol):
+        if B.start[c + 1] > B.start[c]:
+            _column_sweep(c, B, X, box, rel_eps, counts, counts, none)
+    offsets = np.zeros(m + 1, np.int64)
+    for k in range(m):
+        offsets[k + 1] = offsets[k] + counts[k]
+    partners = np.empty(offsets[m], np.int32)
+    if offsets[m] == 0:
+        return offsets, partners
+    for c in prange(ncol):
+        if offsets[B.start[c + 1]] > offsets[B.start[c]]:
+            _column_sweep(c, B, X, box, rel_eps, counts, offsets, partners)
+    return offsets, partners
+
+
+@njit(cache=True)
+def _around(k, B, X, box, rel_eps, active, out, pos):
+    """Crossing partners of bucket row k among all rows whose homes lie within ``back`` of its
+    own (both directions); an active partner with a smaller row is left to that row. Writes
+    partner rows at ``out[pos:]`` when ``out`` has entries; returns the count."""
+    start, z, home, dims, back, faces, fid = B.start, B.z, B.home, B.dims, B.back, B.faces, B.fid
+    n = 0
+    for x in range(max(home[k, 0] - back[0], 0), min(home[k, 0] + back[0], dims[0] - 1) + 1):
+        for y in range(max(home[k, 1] - back[1], 0), min(home[k, 1] + back[1], dims[1] - 1) + 1):
+            c = x * dims[1] + y
+            lo_k, hi_k = start[c], start[c + 1]
+            while lo_k < hi_k:  # first row with z >= z_k − back
+                mid = (lo_k + hi_k) >> 1
+                if z[mid] < z[k] - back[2]:
+                    lo_k = mid + 1
+                else:
+                    hi_k = mid
+            for k2 in range(lo_k, start[c + 1]):
+                if z[k2] > z[k] + back[2]:
+                    break
+                if k2 == k or (active[k2] and k2 < k):
+                    continue
+                if _boxes_apart(box, k, k2) or _shares_vertex(faces, k, k2):
+                    continue
+                if _cross_rest(X, faces, fid, k, k2, rel_eps):
+                    if out.shape[0] > 0:
+                        out[pos + n] = k2
+                    n += 1
+    return n
+
+
+@njit(parallel=True, cache=True)
+def active_crossings(rows, B, X, box, rel_eps, active):
+    """Crossing pairs ``(row, partner row)`` (K, 2) with an active face: ``rows`` the active
+    bucket rows, ``active`` (M,) bool over bucket rows."""
+    counts = np.zeros(rows.shape[0], np.int64)
+    none = np.zeros(0, np.int64)
+    for i in prange(rows.shape[0]):
+        counts[i] = _around(rows[i], B, X, box, rel_eps, active, none, 0)
+    offsets = np.zeros(rows.shape[0] + 1, np.int64)
+    for i in range(rows.shape[0]):
+        offsets[i + 1] = offsets[i] + counts[i]
+    partners = np.empty(offsets[-1], np.int64)
+    for i in prange(rows.shape[0]):
+        if counts[i]:
+            _around(rows[i], B, X, box, rel_eps, active, partners, offsets[i])
+    out = np.empty((offsets[-1], 2), np.int64)
+    for i in range(rows.shape[0]):
+        for t in range(offsets[i], offsets[i + 1]):
+            out[t, 0], out[t, 1] = rows[i], partners[t]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# crossing test over candidate pairs
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _welded(X, faces, a, b):
+    """A corner of face a at exactly the position of a corner of face b."""
+    for x in range(3):
+        p = faces[a, x]
+        for y in range(3):
+            q = faces[b, y]
+            if X[p, 0] == X[q, 0] and X[p, 1] == X[q, 1] and X[p, 2] == X[q, 2]:
+                return True
+    return False
+
+
+@njit(parallel=True, cache=True)
+def face_boxes(X, faces, box):
+    """Bounding box of every face into ``box`` (M, 6): min xyz, max xyz."""
+    for f in prange(faces.shape[0]):
+        for c in range(3):
+            x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
+            box[f, c] = min(x0, min(x1, x2))
+            box[f, 3 + c] = max(x0, max(x1, x2))
+
+
+@njit(parallel=True, cache=True)
+def face_boxes_of(X, faces, rows, box):
+    """:func:`face_boxes` for the faces ``rows`` only."""
+    for i in prange(rows.shape[0]):
+        f = rows[i]
+        for c in range(3):
+            x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
+            box[f, c] = min(x0, min(x1, x2))
+            box[f, 3 + c] = max(x0, max(x1, x2))
+
+
+@njit(cache=True, inline="always")
+def _boxes_apart(box, a, b):
+    """The closed boxes of faces a and b do not overlap."""
+    for c in range(3):
+        if max(box[a, c], box[b, c]) > min(box[a, 3 + c], box[b, 3 + c]):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _cross_rest(X, faces, fid, k, k2, rel_eps):
+    """Bucket rows k and k2 (closed boxes overlapping, no shared corner) cross at positions X:
+    no corner at the same position, Möller's test with the smaller face id first (as the grid
+    search orders them). Called only after the cheap checks, written inline in the loops (numba
+    compiles those tighter than a helper)."""
+    if _welded(X, faces, k, k2):
+        return False
+    p, q = np.int64(k), np.int64(k2)
+    if fid[q] < fid[p]:
+        p, q = q, p
+    return tri_tri(X, faces[p, 0], faces[p, 1], faces[p, 2], faces[q, 0], faces[q, 1],
+                   faces[q, 2], rel_eps)
+
+
+@njit(parallel=True, cache=True)
+def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
+    """``hit[t] = 1`` when candidate pair t (bucket row, ``partners[t]``) crosses."""
+    faces, fid = B.faces, B.fid
+    for k in prange(faces.shape[0]):
+        for t in range(offsets[k], offsets[k + 1]):
+            k2 = partners[t]
+            hit[t] = 0
+            if not _boxes_apart(box, k, k2):
+                if _cross_rest(X, faces, fid, k, k2, rel_eps):
+                    hit[t] = 1

@@ -1,0 +1,168 @@
+"""Numba kernels of the guards run after a filter (private to ``core/smooth``): the fold guard
+and the volume step (face terms, region sums, offsets along face normals)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from ._filter_kernels import FAST
+
+
+@njit(cache=True)
+def _fold_check(pos, faces, ref, eps, f):
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+    nx = e1y * e2z - e1z * e2y
+    ny = e1z * e2x - e1x * e2z
+    nz = e1x * e2y - e1y * e2x
+    rx, ry, rz = ref[f, 0], ref[f, 1], ref[f, 2]
+    r2 = rx * rx + ry * ry + rz * rz
+    return r2 > 0.0 and nx * rx + ny * ry + nz * rz <= eps * r2
+
+
+@njit(parallel=True, cache=True)
+def folded(pos, faces, ref_normals, eps):
+    """Faces whose normal (unnormalised) has turned by 90° or more from ``ref_normals``, or
+    collapsed: ``n · n_ref <= eps |n_ref|²``. Faces with a zero reference normal never count."""
+    m = faces.shape[0]
+    out = np.zeros(m, np.bool_)
+    for f in prange(m):
+        out[f] = _fold_check(pos, faces, ref_normals, eps, f)
+    return out
+
+
+@njit(cache=True)
+def unfold_rounds(pos, start, faces, ref, eps, vf_offsets, vf, bad, rounds, touched):
+    """The fold guard's rounds, in place: move every vertex of a folded face (``bad``: the
+    faces folded now) halfway back to ``start``, ``rounds`` times, then straight back until none
+    is folded (at most 100 times); after each move only the faces around moved vertices are
+    checked again. Marks moved vertices in ``touched`` (N,) bool; returns faces left folded."""
+    n = pos.shape[0]
+    mark = np.zeros(n, np.bool_)
+    seen = np.zeros(faces.shape[0], np.bool_)
+    for r in range(rounds + 100):
+        if bad.shape[0] == 0:
+            break
+        halve = r < rounds
+        moved = np.empty(3 * bad.shape[0], np.int64)
+        k = 0
+        for f in bad:
+            for c in range(3):
+                i = faces[f, c]
+                if not mark[i]:
+                    mark[i] = True
+                    moved[k] = i
+                    k += 1
+        nxt = np.empty(0, np.int64)
+        cand = []
+        for j in range(k):
+            i = moved[j]
+            mark[i] = False
+            touched[i] = True
+            for c in range(3):
+                pos[i, c] = 0.5 * (pos[i, c] + start[i, c]) if halve else start[i, c]
+            for a in range(vf_offsets[i], vf_offsets[i + 1]):
+                f = vf[a]
+                if not seen[f]:
+                    seen[f] = True
+                    cand.append(f)
+        for f in cand:
+            seen[f] = False
+        keep = [f for f in cand if _fold_check(pos, faces, ref, eps, f)]
+        nxt = np.array(keep, np.int64) if len(keep) else nxt
+        bad = nxt
+    return bad.shape[0]
+
+
+@njit(parallel=True, cache=True)
+def face_terms(pos, faces, origin, normals, areas, tet):
+    """Unit normal, area (mm²) and the signed volume of the tetrahedron (origin, face) (mm³)
+    of every face (a zero-area face gets normal 0)."""
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+        areas[f] = 0.5 * ln
+        k = 1.0 / ln if ln > 0.0 else 0.0
+        normals[f, 0], normals[f, 1], normals[f, 2] = nx * k, ny * k, nz * k
+        cx = (pos[a, 0] + pos[b, 0] + pos[c, 0]) / 3.0 - origin[0]
+        cy = (pos[a, 1] + pos[b, 1] + pos[c, 1]) / 3.0 - origin[1]
+        cz = (pos[a, 2] + pos[b, 2] + pos[c, 2]) / 3.0 - origin[2]
+        tet[f] = 0.5 * (nx * cx + ny * cy + nz * cz) / 3.0
+
+
+@njit(cache=True)
+def region_terms(inside, outside, areas, tet, volume, diag, between, touching):
+    """Per region: enclosed volume (inside faces count +, outside −), shell area (``diag``) and,
+    when regions ``touching``, the area it shares with each other region (``between`` (R, R),
+    inside row) — zeroed first."""
+    volume[:] = 0.0
+    diag[:] = 0.0
+    if touching:
+        between[:, :] = 0.0
+    for f in range(inside.shape[0]):
+        a, b = inside[f], outside[f]
+        if a >= 0:
+            volume[a] += tet[f]
+            diag[a] += areas[f]
+        if b >= 0:
+            volume[b] -= tet[f]
+            diag[b] += areas[f]
+        if touching and a >= 0 and b >= 0:
+            between[a, b] += areas[f]
+
+
+@njit(parallel=True, cache=True)
+def face_moves(normals, areas, lam, inside, outside, moves):
+    """``moves[f] = (A t n, A)`` with the face offset ``t = lam[inside] − lam[outside]`` along
+    the unit normal n and the area A (``lam`` (R + 1,), its last entry 0: background, −1)."""
+    for f in prange(normals.shape[0]):
+        w = areas[f] * (lam[inside[f]] - lam[outside[f]])
+        moves[f, 0], moves[f, 1], moves[f, 2] = w * normals[f, 0], w * normals[f, 1], w * normals[f, 2]
+        moves[f, 3] = areas[f]
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
+def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
+    """Each vertex by the area-weighted mean of its faces' moves (:func:`face_moves`):
+    ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain."""
+    has_gain = gain.shape[0] > 0
+    for i in prange(src.shape[0]):
+        sx = 0.0
+        sy = 0.0
+        sz = 0.0
+        sa = 0.0
+        for a in range(vf_offsets[i], vf_offsets[i + 1]):
+            f = vf[a]
+            sx += moves[f, 0]
+            sy += moves[f, 1]
+            sz += moves[f, 2]
+            sa += moves[f, 3]
+        px, py, pz = src[i, 0], src[i, 1], src[i, 2]
+        if sa > 0.0:
+            k = 1.0 / sa
+            if has_gain:
+                k *= gain[i]
+            px, py, pz = px + k * sx, py + k * sy, pz + k * sz
+        dst[i, 0] = px
+        dst[i, 1] = py
+        dst[i, 2] = pz
+
+
+@njit(parallel=True, cache=True)
+def face_cross(pos, faces, out):
+    """Unnormalised normal ``(b − a) × (c − a)`` of every face into ``out`` (M, 3)."""
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        out[f, 0] = e1y * e2z - e1z * e2y
+        out[f, 1] = e1z * e2x - e1x * e2z
+        out[f, 2] = e1x * e2y - e1y * e2x

@@ -1,0 +1,198 @@
+"""Numba kernels of :mod:`anatomesh.core.smooth.shell_measures` (private to ``core/smooth``):
+per-face measures of a surface set and their sums per label."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import get_thread_id, njit, prange
+
+
+@njit(cache=True, inline="always")
+def _angle(ax, ay, az, bx, by, bz):
+    cx = ay * bz - az * by
+    cy = az * bx - ax * bz
+    cz = ax * by - ay * bx
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+
+
+@njit(parallel=True, cache=True)
+def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_angle, angles):
+    """Per face at ``pos`` (N, 3) float64: area (mm²), signed volume of the tetrahedron
+    (origin, face) (mm³), turned over against the unnormalised normals ``ref`` (n · ref < 0),
+    degenerate (a repeated corner or zero area) and, when ``angles``, the smallest interior
+    angle (degrees)."""
+    for f in prange(faces.shape[0]):
+        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        area[f] = 0.5 * math.sqrt(nx * nx + ny * ny + nz * nz)
+        tet[f] = (nx * (pos[a, 0] - origin[0]) + ny * (pos[a, 1] - origin[1])
+                  + nz * (pos[a, 2] - origin[2])) / 6.0
+        flipped[f] = nx * ref[f, 0] + ny * ref[f, 1] + nz * ref[f, 2] < 0.0
+        degenerate[f] = a == b or b == c or a == c or area[f] <= 0.0
+        if not angles:
+            continue
+        e3x, e3y, e3z = pos[c, 0] - pos[b, 0], pos[c, 1] - pos[b, 1], pos[c, 2] - pos[b, 2]
+        l1 = e1x * e1x + e1y * e1y + e1z * e1z  # the smallest angle faces the shortest edge
+        l2 = e2x * e2x + e2y * e2y + e2z * e2z
+        l3 = e3x * e3x + e3y * e3y + e3z * e3z
+        if l3 <= l1 and l3 <= l2:  # edge bc: the angle at a
+            t = _angle(e1x, e1y, e1z, e2x, e2y, e2z)
+        elif l2 <= l1:  # edge ca: the angle at b
+            t = _angle(-e1x, -e1y, -e1z, e3x, e3y, e3z)
+        else:  # edge ab: the angle at c
+            t = _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)
+        min_angle[f] = math.degrees(t)
+
+
+@njit(parallel=True, cache=True)
+def corner_max(values, faces, out):
+    """``out[f]``: the largest of ``values`` over the corners of face f."""
+    for f in prange(faces.shape[0]):
+        out[f] = max(values[faces[f, 0]], max(values[faces[f, 1]], values[faces[f, 2]]))
+
+
+@njit(cache=True)
+def label_sums(sides, per_face, signed, out):
+    """``out[k, j]`` += ``per_face[f, j]`` for each side of face f with label index
+    ``k = sides[f, side] >= 0``, negated on the outside when ``signed[j]``; zeroed first."""
+    out[:, :] = 0.0
+    for f in range(sides.shape[0]):
+        for side in range(2):
+            k = sides[f, side]
+            if k < 0:
+                continue
+            for j in range(per_face.shape[1]):
+                x = per_face[f, j]
+                out[k, j] += -x if (signed[j] and side == 1) else x
+
+
+@njit(cache=True)
+def label_max(sides, per_face, out):
+    """``out[k]``: the largest ``per_face[f]`` over faces f with label index k on a side."""
+    out[:] = 0.0
+    for f in range(sides.shape[0]):
+        for side in range(2):
+            k = sides[f, side]
+            if k >= 0 and per_face[f] > out[k]:
+                out[k] = per_face[f]
+
+
+@njit(cache=True)
+def label_distances(sides, vf_offsets, vf, at_vertices, at_centroids, worst, total, count):
+    """Add one direction's samples to each label's worst, sum and count: every vertex once per
+    label around it (its nearest incident face of that label, ``at_vertices`` per vertex →
+    faces entry) and every face centroid once per label on its sides."""
+    labels = np.empty(64, np.int64)
+    best = np.empty(64)
+    for i in range(vf_offsets.shape[0] - 1):
+        n = 0
+        for t in range(vf_offsets[i], vf_offsets[i + 1]):
+            f = vf[t]
+            for side in range(2):
+                k = sides[f, side]
+                if k < 0:
+                    continue
+                j = 0
+                while j < n and labels[j] != k:
+                    j += 1
+                if j == n:
+                    if n == 64:
+                        continue
+                    labels[n] = k
+                    best[n] = at_vertices[t]
+                    n += 1
+                elif at_vertices[t] < best[j]:
+                    best[j] = at_vertices[t]
+        for j in range(n):
+            _add(labels[j], best[j], worst, total, count)
+    for f in range(sides.shape[0]):
+        for side in range(2):
+            if sides[f, side] >= 0:
+                _add(sides[f, side], at_centroids[f], worst, total, count)
+
+
+@njit(cache=True, inline="always")
+def _add(k, d, worst, total, count):
+    if d > worst[k]:
+        worst[k] = d
+    total[k] += d
+    count[k] += 1
+
+
+@njit(cache=True)
+def vertex_faces(faces, n):
+    """Vertex → faces CSR ``(offsets (n + 1,), faces (3M,))``, faces ascending per vertex."""
+    offsets = np.zeros(n + 1, np.int64)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            offsets[faces[f, c] + 1] += 1
+    for i in range(n):
+        offsets[i + 1] += offsets[i]
+    fill = offsets[:-1].copy()
+    vf = np.empty(offsets[n], np.int64)
+    for f in range(faces.shape[0]):
+        for c in range(3):
+            i = faces[f, c]
+            vf[fill[i]] = f
+            fill[i] += 1
+    return offsets, vf
+
+
+@njit(cache=True)
+def _around(faces, vf_offsets, vf, a, spoke, sign, parent):
+    """Edges and fans at vertex a: ``(edges (a, b > a), one face, > 2 faces, 2 faces used in
+    one direction, fans)``. Each face gives two spokes, its corner after a (+1, edge a → b) and
+    before a (−1); faces sharing a spoke are in one fan."""
+    k = vf_offsets[a + 1] - vf_offsets[a]
+    for p in range(k):
+        f = vf[vf_offsets[a] + p]
+        c = 0 if faces[f, 0] == a else (1 if faces[f, 1] == a else 2)
+        spoke[2 * p], sign[2 * p] = faces[f, (c + 1) % 3], 1
+        spoke[2 * p + 1], sign[2 * p + 1] = faces[f, (c + 2) % 3], -1
+        parent[p] = p
+    edges, one, many, same, fans = 0, 0, 0, 0, k
+    for t in range(2 * k):
+        b = spoke[t]
+        first = True
+        count, balance = 0, 0
+        for u in range(2 * k):
+            if spoke[u] == b:
+                count += 1
+                balance += sign[u]
+                if u < t:
+                    first = False
+                elif u > t:  # link the faces of t and u
+                    r, q = t // 2, u // 2
+                    while parent[r] != r:
+                        r = parent[r]
+                    while parent[q] != q:
+                        q = parent[q]
+                    if r != q:
+                        parent[max(r, q)] = min(r, q)
+                        fans -= 1
+        if first and b > a:
+            edges += 1
+            if count == 1:
+                one += 1
+            elif count > 2:
+                many += 1
+            elif balance != 0:
+                same += 1
+    return edges, one, many, same, fans
+
+
+@njit(parallel=True, cache=True)
+def vertex_stats(faces, vf_offsets, vf, out, scratch):
+    """Per vertex: ``out[a] = (edges (a, b > a), boundary edges, non-manifold edges, edges two
+    faces use in one direction, fans)`` of :func:`_around`; ``scratch`` (threads, 5 x most
+    faces at a vertex) int64."""
+    most = scratch.shape[1] // 5
+    for a in prange(vf_offsets.shape[0] - 1):
+        row = scratch[get_thread_id()]
+        out[a, 0], out[a, 1], out[a, 2], out[a, 3], out[a, 4] = _around(
+            faces, vf_offsets, vf, a, row[:2 * most], row[2 * most:4 * most], row[4 * most:])

@@ -1,0 +1,300 @@
+"""A smoothing session: the unsmoothed surface and everything that depends only on it, cached, so
+that smoothing again with other settings (a slider in Blender) runs only the filter and the
+guards, at kernel speed.
+
+Made once from a :class:`~anatomesh.core.model.surfaceset.SurfaceSet`: a label map's set (each
+vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets") or a set of
+independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
+``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings,
+padded columns, vertex → faces), the cell boxes, the regions and target volumes of the volume
+step, the fold guard's reference normals, the faces bucketed by their boxes (which pairs can
+cross, :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the
+second run on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
+whole default driver — filter, fold guard, volume step, fold guard, untangling — for any
+settings; :meth:`SmoothingSession.smooth` adds the per-shell report.
+
+Usage (a slider)::
+
+    session = SmoothingSession(surfaces)                                  # once per scan
+    vertices, info = session.run("organ", lam=0.55, precision="float32")  # every move
+    smoothed, report = session.smooth("organ")                            # with the report
+
+A session keeps working buffers: use it from one thread at a time. A cell box is the voxel shrunk
+by a hair (:attr:`SmoothingSession.margin`, 1e-4 voxel), so two vertices of neighbouring cells
+never meet on their shared face: faces whose boxes only touch cannot cross, and testing only the
+candidate pairs is exact.
+"""
+from __future__ import annotations
+
+import time
+from typing import Dict, Optional, Tuple
+
+import numpy as np
+
+from .checks import mesh_structure, precision_dtype
+from .constraints import (Constraint, clamp, distance_gain, lattice_constraint, staircase_params,
+                          voxel_constraint)
+from .filters import FILTERS
+from .guards import VolumeRegions, component_regions, fold_reference, unfold_in_place
+from .presets import DEFAULT, resolve
+from .report import SmoothingReport, describe
+from .shell_measures import ShellMeasures, shell_key, shell_warnings
+from .untangle import untangle as untangle_crossings
+from ..geometry.face_pairs import FaceBoxes
+from ..geometry.neighbors import MeshStructure
+from ..model.errors import AnatomeshError
+from ..model.progress import Progress, report, sub
+from ..model.surfaceset import SurfaceSet
+
+
+def face_groups_of(face_labels: np.ndarray) -> np.ndarray:
+    """A group id per face from its (inside, outside) labels: faces of the same unordered label
+    pair share a group (ids in the order of the pairs), so edges between groups are the
+    junctions where 3+ labels meet."""
+    fl = np.asarray(face_labels, np.int64).reshape(-1, 2)
+    if fl.size == 0:
+        return np.zeros(0, np.int64)
+    r = int(fl.max()) + 1
+    key = np.minimum(fl[:, 0], fl[:, 1]) * r + np.maximum(fl[:, 0], fl[:, 1])
+    if r * r > 1 << 24:  # too many labels for a table
+        return np.unique(key, return_inverse=True)[1].astype(np.int64).ravel()
+    seen = np.zeros(r * r, np.int64)
+    seen[key] = 1
+    return (np.cumsum(seen) - 1)[key]
+
+
+class SmoothingSession:
+    """Cached smoothing of one :class:`~anatomesh.core.model.surfaceset.SurfaceSet`.
+
+    Parameters
+    ----------
+    surfaces : SurfaceSet
+        The unsmoothed surfaces; never modified.
+    structure : MeshStructure, optional
+        The neighbourhoods of ``surfaces.faces`` if already built.
+
+    Attributes
+    ----------
+    surfaces : SurfaceSet
+    rest : (N, 3) float64 — the unsmoothed positions, mm
+    structure : MeshStructure
+    margin : float — how much (voxels) a cell box is smaller than the voxel on each side
+    """
+
+    def __init__(self, surfaces: SurfaceSet, *, structure: Optional[MeshStructure] = None):
+        if not isinstance(surfaces, SurfaceSet):
+            raise AnatomeshError(f"smoothing needs a SurfaceSet (SurfaceSet.from_meshes for meshes), "
+                                 f"got {type(surfaces).__name__}")
+        self.surfaces = surfaces
+        self.faces = surfaces.faces
+        self.rest = np.ascontiguousarray(surfaces.vertices, np.float64)
+        self.structure = mesh_structure(self.faces, len(self.rest), structure)
+        a3 = np.asarray(surfaces.affine, np.float64)[:3, :3]
+        scale = float(np.abs(self.rest).max(initial=0.0)) + float(np.abs(a3).sum())
+        spacing = float(np.linalg.norm(a3, axis=0).min()) or 1.0
+        # float32 positions round by < 2^-24 of the coordinates: stay well clear of that
+        self.margin = max(1e-4, 8.0 * 2.0 ** -24 * scale / spacing)
+        self._cache: Dict = {}
+        self._cells: set = set()  # ids of the cached cell constraints
+        self._runs = 0
+
+    @property
+    def has_lattice(self) -> bool:
+        """Vertices come from a label map's lattice (else: independent surfaces)."""
+        return self.surfaces.lattice is not None
+
+    def _cached(self, key, make):
+        if key not in self._cache:
+            self._cache[key] = make()
+        return self._cache[key]
+
+    def face_groups(self) -> Optional[np.ndarray]:
+        """(M,) junction groups of a label map's set (:func:`face_groups_of`); None otherwise."""
+        if not self.has_lattice:
+            return None
+        return self._cached("groups", lambda: face_groups_of(self.surfaces.face_labels))
+
+    def regions(self) -> VolumeRegions:
+        """The regions of the volume step with their unsmoothed volumes: the labels of a label
+        map's set (background −1), the closed connected components of independent surfaces
+        (open ones get none)."""
+        return self._cached("regions", self._make_regions)
+
+    def _make_regions(self) -> VolumeRegions:
+        if self.has_lattice:
+            fl = np.asarray(self.surfaces.face_labels, np.int64)
+            present = np.zeros(max(int(fl.max(initial=0)), self.surfaces.background) + 1, bool)
+            present[fl.ravel()] = True
+            present[self.surfaces.background] = False
+            index = np.cumsum(present) - 1
+            index[~present] = -1
+            sides, n = index[fl], int(present.sum())
+        else:
+            sides, n = component_regions(self.structure)
+        regions = VolumeRegions(self.structure.faces, sides, np.zeros(n))
+        regions.targets = regions.volumes(self.rest)[0]
+        return regions
+
+    def reference(self) -> np.ndarray:
+        """Unnormalised normals of the unsmoothed faces (fold guard, report)."""
+        return self._cached("reference", lambda: fold_reference(self.rest, self.faces))
+
+    def constraint(self, constraint, max_deviation: Optional[float]) -> Optional[Constraint]:
+        """The constraint for a setting: ``"cell"`` → the lattice cell box (label map) or the
+        voxel box around each start (independent surfaces), ``None``, or a given
+        :class:`Constraint`; ``max_deviation`` mm added as a cap. Cell boxes are cached."""
+        if isinstance(constraint, Constraint):
+            if max_deviation is None:
+                return constraint
+            return Constraint(constraint.kind, constraint.center, constraint.frame,
+                              constraint.half, max_deviation)
+        if constraint is None:
+            return Constraint(max_deviation=max_deviation) if max_deviation is not None else None
+        if constraint != "cell":
+            raise AnatomeshError(f"constraint must be 'cell', None or a Constraint, got {constraint!r}")
+        return self._cached(("cell", max_deviation), lambda: self._cell(max_deviation))
+
+    def _cell(self, max_deviation):
+        s, half = self.surfaces, 0.5 - self.margin
+        if self.has_lattice:
+            c = lattice_constraint(s.affine, s.lattice, half=half, max_deviation=max_deviation)
+        else:
+            c = voxel_constraint(s.affine, half=half, max_deviation=max_deviation)
+        self._cells.add(id(c))
+        return c
+
+    def boxes(self) -> FaceBoxes:
+        """The faces bucketed by their cell boxes (which pairs can cross while every vertex
+        stays in its box); cached, the pairs listed from the second run on (a slider)."""
+        boxes = self._cached("boxes", self._make_boxes)
+        if self._runs > 1:
+            boxes.materialize()
+        return boxes
+
+    def _make_boxes(self) -> FaceBoxes:
+        s = self.surfaces
+        if self.has_lattice:
+            centres = s.lattice - 0.5
+        else:
+            a = np.asarray(s.affine, np.float64)
+            centres = (self.rest - a[:3, 3]) @ np.linalg.inv(a[:3, :3]).T
+        return FaceBoxes(self.faces, centres, (0.5, 0.5, 0.5))
+
+    def gain(self, damping_distance: float) -> np.ndarray:
+        """Distance-aware damping of the connected parts (:func:`distance_gain`), cached."""
+        return self._cached(("gain", float(damping_distance)), lambda: distance_gain(
+            self.rest, self.structure.components(), damping_distance))
+
+    def measures(self) -> ShellMeasures:
+        """The per-shell measures against the unsmoothed set; cached."""
+        return self._cached("measures", lambda: ShellMeasures(self.surfaces, self.rest,
+                                                              self.structure, self.reference()))
+
+    def run(self, method: str = DEFAULT, *, constraint="auto", max_deviation: Optional[float] = None,
+            junctions: bool = True, staircase="auto", damping_distance: Optional[float] = None,
+            preserve_volume: Optional[bool] = None, fold_guard: bool = True, untangle: bool = True,
+            precision: str = "float64", progress: Optional[Progress] = None,
+            **params) -> Tuple[np.ndarray, dict]:
+        """Smooth the unsmoothed surfaces with these settings; see
+        :func:`~anatomesh.core.smooth.driver.smooth_surfaces` for each setting. ``precision``:
+        the arithmetic of the Taubin/Laplacian passes, "float64" or "float32" (live sliders:
+        within 1e-3 mm of float64); the guards always run in float64.
+
+        Returns ``(vertices (N, 3) float32 mm, info)`` with ``info = {"method", "params",
+        "seconds", "warnings"}``."""
+        t0 = time.perf_counter()
+        precision_dtype(precision)
+        self._runs += 1
+        name, p = resolve(method, **params)
+        preset_constraint = p.pop("constraint", "cell")
+        preserve = p.pop("preserve_volume", False) if preserve_volume is None else preserve_volume
+        p.pop("preserve_volume", None)
+        if name == "none" or not self.faces.shape[0]:
+            return self.surfaces.vertices.copy(), {"method": "none", "params": describe(p),
+                                                    "seconds": time.perf_counter() - t0,
+                                                    "warnings": []}
+        c = self.constraint(preset_constraint if constraint == "auto" else constraint, max_deviation)
+        kw = self._filter_args(name, p, c, junctions, staircase, damping_distance, precision)
+        kw["progress"] = sub(progress, 0.0, 0.9) if preserve else progress
+        try:
+            pos = np.ascontiguousarray(FILTERS[name](self.rest, self.faces, **kw), np.float64)
+        except TypeError as e:  # an unknown keyword for this filter
+            raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
+        cons = (c.anchored(self.rest) if c is not None else Constraint()).arrays(self.rest)
+        clamp(pos, cons)  # float32 passes round: back inside in float64
+        out, extra, warnings = self._guards(pos, c, cons, kw.get("gain"), preserve, fold_guard,
+                                            untangle, progress)
+        report(progress, 1.0, "smoothed")
+        p.update(constraint=c, **{k: v for k, v in kw.items() if k.startswith("slice_")}, **extra)
+        if precision != "float64":
+            p["precision"] = precision
+        return out, {"method": name, "params": describe(p), "seconds": time.perf_counter() - t0,
+                     "warnings": warnings}
+
+    def _filter_args(self, name, p, c, junctions, staircase, damping_distance, precision) -> dict:
+        kw = dict(p, constraint=c, structure=self.structure)
+        if junctions and self.has_lattice:
+            kw["face_groups"] = self.face_groups()
+        if damping_distance is not None:
+            kw["gain"] = self.gain(damping_distance)
+        if name == "taubin" and staircase and "slice_axis" not in kw:
+            kw.update(staircase_params(self.surfaces.affine, kw.get("iterations", 20),
+                                       min_ratio=1.5 if staircase == "auto" else 1.0))
+        if name in ("taubin", "laplacian"):
+            kw["precision"] = precision
+        return kw
+
+    def _guards(self, pos, c, cons, gain, preserve, fold_guard, untangle, progress):
+        """Fold guard, volume step, fold guard (float64, in place), then untangling on the
+        float32 positions the set keeps. Returns (float32 positions, params, warnings)."""
+        extra, warnings = {}, []
+        unfolded = 0
+        if fold_guard:
+            unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
+        if preserve:
+            pos = self.regions().restore(pos, self.structure, cons,
+                                         np.zeros(0) if gain is None else gain)
+            if fold_guard:
+                unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
+            extra["preserve_volume"] = True
+        if fold_guard:
+            extra["unfolded_vertices"] = unfolded
+        out = pos.astype(np.float32)
+        if untangle:
+            report(progress, 0.97, "checking for crossing faces")
+            pairs = self.boxes() if id(c) in self._cells else None
+            out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
+                                           structure=self.structure)
+            extra["untangled_vertices"] = info["moved_vertices"]
+            if info["crossings_left"]:
+                warnings.append(f"{info['crossings_left']} pairs of faces still cross after "
+                                "smoothing (the unsmoothed surface crosses itself there)")
+        return out, extra, warnings
+
+    def measure(self, vertices: np.ndarray, *, distances: bool = True,
+                volume_warning_pct: float = 5.0) -> Tuple[Dict, list]:
+        """Per-shell measures of smoothed ``vertices`` (N, 3) against the unsmoothed set
+        (:class:`~anatomesh.core.smooth.shell_measures.ShellMeasures`) and their warnings."""
+        shells = self.measures().measure(np.ascontiguousarray(vertices, np.float64),
+                                         distances=distances)
+        warnings = []
+        for value, r in zip(self.surfaces.values(), shells.values()):
+            info = self.surfaces.labels.get(value)
+            name = info.name if info is not None else "surface"
+            key = shell_key(self.surfaces.shell_values.get(value, value))
+            warnings += shell_warnings(f"{name} ({key})", r, volume_warning_pct)
+        return shells, warnings
+
+    def smooth(self, method: str = DEFAULT, *, measure: bool = True, distances: bool = True,
+               volume_warning_pct: float = 5.0, **settings) -> Tuple[SurfaceSet, SmoothingReport]:
+        """:meth:`run`, then the smoothed set and its :class:`SmoothingReport` (per-shell
+        measures when ``measure``; ``distances`` adds the Hausdorff and mean distances)."""
+        vertices, info = self.run(method, **settings)
+        out = self.surfaces.copy_with_vertices(vertices)
+        shells, warnings = {}, list(info["warnings"])
+        if measure and info["method"] != "none":
+            shells, more = self.measure(vertices, distances=distances,
+                                        volume_warning_pct=volume_warning_pct)
+            warnings += more
+        return out, SmoothingReport(info["method"], info["params"], info["seconds"], shells,
+                                    warnings)

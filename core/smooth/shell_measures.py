@@ -1,0 +1,205 @@
+"""What smoothing did to each shell of a surface set, measured on the whole set at once.
+
+The measures of :func:`anatomesh.core.geometry.measure.compare` per label shell — volume and area
+before and after, largest vertex displacement, folded and degenerate faces, smallest angles,
+topology, and the symmetric Hausdorff and mean distance to the unsmoothed shell — computed once
+per face and per vertex of the set, then summed per label (a face counts for both labels on its
+sides, inwards for the inside label, outwards for the outside one). The unsmoothed side (areas,
+volumes, topology) is computed once, so measuring again after another smoothing costs a few face
+passes. Distances are sampled at vertices and face centroids in both directions, each sample
+measured to the faces around it in the other surface (a vertex: its faces; a centroid: its face
+and the three across its edges)
+(:func:`anatomesh.core.geometry.local_distance.local_distances`): upper bounds of the
+nearest-triangle distances, equal to them wherever the nearest point lies on those faces.
+"""
+from __future__ import annotations
+
+from typing import Dict, List, Optional, Tuple
+
+import numba
+import numpy as np
+
+from . import _shell_kernels as _k
+from ..geometry.local_distance import edge_neighbours, local_distances
+from ..geometry.kernels import union_find_roots
+from ..geometry.neighbors import MeshStructure
+from ..model.mesh import Mesh
+from ..model.surfaceset import SurfaceSet
+
+_TOPO_KEYS = ("components", "genus", "closed", "manifold", "oriented", "degenerate_faces")
+#: columns of the per-face table summed per label: area, signed volume, flipped, degenerate,
+#: smallest angle, angle below 10°, 1 (the face count)
+_SIGNED = np.array([False, True, False, False, False, False, False])
+
+
+def shell_key(value) -> int:
+    """The report key of a shell: its value, an int when whole."""
+    key = 0 if value is None else value
+    return int(key) if float(key).is_integer() else float(key)
+
+
+class ShellMeasures:
+    """The per-shell measures of one surface set against its unsmoothed positions.
+
+    Parameters
+    ----------
+    surfaces : SurfaceSet — the unsmoothed set
+    rest : (N, 3) float64 — its positions, mm
+    structure : MeshStructure of its faces
+    reference : (M, 3) float64 — unnormalised normals of the unsmoothed faces
+    """
+
+    def __init__(self, surfaces: SurfaceSet, rest: np.ndarray, structure: MeshStructure,
+                 reference: np.ndarray):
+        self.surfaces, self.rest, self.s, self.reference = surfaces, rest, structure, reference
+        self.values = surfaces.values()
+        index = np.full(max(self.values + [surfaces.background, 0]) + 1, -1, np.int64)
+        index[np.asarray(self.values, np.int64)] = np.arange(len(self.values))
+        self.sides = np.ascontiguousarray(index[surfaces.face_labels])
+        self.origin = rest[0] if len(rest) else np.zeros(3)
+        self.before = self._sums(rest)
+        self._topology: Optional[List[dict]] = None
+        self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
+        self._near: Optional[np.ndarray] = None
+
+    def _faces(self, pos: np.ndarray, angles: bool = True):
+        m = self.s.n_faces
+        cols = np.empty((m, 7))
+        area, tet, angle = np.empty(m), np.empty(m), np.zeros(m)
+        flipped, degenerate = np.empty(m, np.bool_), np.empty(m, np.bool_)
+        _k.face_measures(pos, self.s.faces, self.origin, self.reference, area, tet, flipped,
+                         degenerate, angle, angles)
+        cols[:, 0], cols[:, 1], cols[:, 2], cols[:, 3] = area, tet, flipped, degenerate
+        cols[:, 4], cols[:, 5], cols[:, 6] = angle, angle < 10.0, 1.0
+        return cols, angle
+
+    def _sums(self, pos: np.ndarray) -> np.ndarray:
+        out = np.empty((len(self.values), 7))
+        _k.label_sums(self.sides, self._faces(pos, angles=False)[0], _SIGNED, out)
+        return out
+
+    def topology_before(self) -> List[dict]:
+        """Per shell: components, genus, closed, manifold, oriented, degenerate faces of the
+        unsmoothed shell, as :func:`anatomesh.core.geometry.topology.topology` gives them; cached.
+        All shells at once: their meshes side by side, edges counted around each vertex."""
+        if self._topology is None:
+            self._topology = shell_topology(self.surfaces.shells(), self.before[:, 3])
+        return self._topology
+
+    def measure(self, after: np.ndarray, *, distances: bool = True) -> Dict:
+        """Per shell value, the measures of :func:`anatomesh.core.geometry.measure.compare`
+        (without curvature) at float64 positions ``after``."""
+        cols, angle = self._faces(after)
+        now = np.empty((len(self.values), 7))
+        _k.label_sums(self.sides, cols, _SIGNED, now)
+        disp = np.linalg.norm(after - self.rest, axis=1)
+        face_disp, worst_disp = np.empty(self.s.n_faces), np.empty(len(self.values))
+        _k.corner_max(disp, self.s.faces, face_disp)
+        _k.label_max(self.sides, face_disp, worst_disp)
+        dist = self._distances(after) if distances else None
+        angles = self._angle_stats(angle)
+        out = {}
+        for k, (value, topo) in enumerate(zip(self.values, self.topology_before())):
+            out[self._key(value)] = self._shell(k, now[k], worst_disp[k], angles[:, k], topo, dist)
+        return out
+
+    def _key(self, value: int):
+        return shell_key(self.surfaces.shell_values.get(value, value))
+
+    def _shell(self, k, now, worst_disp, angles, topo, dist) -> dict:
+        b = self.before[k]
+        n = max(now[6], 1.0)
+        r = {"faces": int(now[6]), "volume_before_mm3": float(b[1]),
+             "volume_after_mm3": float(now[1]),
+             "volume_change_pct": 100.0 * (now[1] - b[1]) / abs(b[1]) if b[1] else 0.0,
+             "area_before_mm2": float(b[0]), "area_after_mm2": float(now[0]),
+             "max_displacement_mm": float(worst_disp)}
+        if dist is not None:
+            r["hausdorff_mm"] = float(dist[0][k])
+            r["mean_distance_mm"] = float(dist[1][k] / max(dist[2][k], 1))
+        r["quality_after"] = {"min_angle_deg": float(angles[0]),
+                              "p01_min_angle_deg": float(angles[1]),
+                              "mean_min_angle_deg": float(now[4] / n),
+                              "fraction_below_10deg": float(now[5] / n)}
+        r["flipped_faces"] = int(now[2])
+        after = dict(topo, degenerate_faces=int(now[3]))
+        r["topology_before"], r["topology_after"] = dict(topo), after
+        r["topology_changed"] = [key for key in _TOPO_KEYS if topo[key] != after[key]]
+        return r
+
+    def _angle_stats(self, angle: np.ndarray) -> np.ndarray:
+        """(2, shells): the smallest face angle and its 1st percentile in each shell."""
+        if self._by_label is None:
+            lab = self.sides.ravel()
+            occurrence = np.flatnonzero(lab >= 0)
+            order = np.argsort(lab[occurrence], kind="stable")
+            starts = np.searchsorted(lab[occurrence][order], np.arange(len(self.values) + 1))
+            self._by_label = (occurrence[order] // 2, starts)
+        faces, starts = self._by_label
+        per = angle[faces]
+        out = np.zeros((2, len(self.values)))
+        for k in range(len(self.values)):
+            part = per[starts[k]:starts[k + 1]]
+            if part.size:
+                out[0, k], out[1, k] = part.min(), np.percentile(part, 1)
+        return out
+
+    def _distances(self, after: np.ndarray):
+        """Per label: the worst sample, the sum of samples and their count, both directions."""
+        worst, total = np.zeros(len(self.values)), np.zeros(len(self.values))
+        count = np.zeros(len(self.values), np.int64)
+        if self._near is None:
+            self._near = edge_neighbours(self.s)
+        for a, b in ((after, self.rest), (self.rest, after)):
+            at_vertices, at_centroids = local_distances(a, b, self.s, self._near)
+            _k.label_distances(self.sides, self.s.vf_offsets, self.s.vf, at_vertices,
+                               at_centroids, worst, total, count)
+        return worst, total, count
+
+
+def shell_topology(shells: List[Mesh], degenerate: np.ndarray) -> List[dict]:
+    """Topology of every shell (components, genus, closed, manifold, oriented; ``degenerate``
+    faces given), as :func:`anatomesh.core.geometry.topology.topology` gives it, for all shells
+    at once: their meshes side by side, edges and fans counted around each vertex, components by
+    union-find."""
+    sizes = np.array([m.n_vertices for m in shells], np.int64)
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    faces = np.concatenate([m.faces.astype(np.int64) + o for m, o in zip(shells, offsets)] or
+                           [np.zeros((0, 3), np.int64)])
+    n = int(offsets[-1])
+    vf_offsets, vf = _k.vertex_faces(faces, n)
+    most = int(np.diff(vf_offsets).max(initial=1))
+    stats = np.zeros((n, 5), np.int64)
+    _k.vertex_stats(faces, vf_offsets, vf, stats,
+                    np.empty((numba.get_num_threads(), 5 * most), np.int64))
+    roots = union_find_roots(np.r_[faces[:, 0], faces[:, 1]], np.r_[faces[:, 1], faces[:, 2]], n)
+    used = np.diff(vf_offsets) > 0
+    shell = np.repeat(np.arange(len(shells)), sizes)
+    k = len(shells)
+    per = [np.bincount(shell, stats[:, j], minlength=k).astype(np.int64) for j in range(4)]
+    pinched = np.bincount(shell, stats[:, 4] > 1, minlength=k)
+    ncomp = np.bincount(shell, used & (roots == np.arange(n)), minlength=k).astype(np.int64)
+    nused = np.bincount(shell, used, minlength=k).astype(np.int64)
+    out = []
+    for i, m in enumerate(shells):
+        closed = per[1][i] == 0 and per[2][i] == 0 and m.n_faces > 0
+        manifold = per[2][i] == 0 and pinched[i] == 0
+        euler = int(nused[i] - per[0][i] + m.n_faces)
+        c = int(ncomp[i])
+        genus = (2 * c - euler) // 2 if closed and manifold and (2 * c - euler) % 2 == 0 else None
+        out.append({"components": c, "genus": genus, "closed": bool(closed),
+                    "manifold": bool(manifold), "oriented": bool(per[3][i] == 0),
+                    "degenerate_faces": int(degenerate[i])})
+    return out
+
+
+def shell_warnings(label: str, r: dict, volume_warning_pct: float) -> List[str]:
+    """The warning lines of one shell's measures."""
+    out = []
+    if abs(r["volume_change_pct"]) > volume_warning_pct:
+        out.append(f"{label}: volume changed by {r['volume_change_pct']:+.1f} %")
+    if r["flipped_faces"]:
+        out.append(f"{label}: {r['flipped_faces']} faces folded over by smoothing")
+    if r["topology_changed"]:
+        out.append(f"{label}: {', '.join(r['topology_changed'])} changed by smoothing")
+    return out
