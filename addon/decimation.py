@@ -22,14 +22,15 @@ ERROR_PROPS = (
 )
 
 
-def surface_set_from_objects(objects) -> Tuple[object, List]:
+def surface_set_from_objects(objects, rest: bool = False) -> Tuple[object, List]:
     """Put shells that share vertex ids (``anatomesh_vid``) back together into a core SurfaceSet.
 
     Object ``k`` becomes label ``k + 1`` (background 0). A triangle found in two objects (an
     interface, once per orientation) is stored once, oriented as in its first object, with the
     two labels on its sides; a vertex id used by several vertices of one object (a pinch point,
     where a shell touches itself) gives split rows, so the shells come back 2-manifold.
-    Positions are the objects' current ones (the shape shown). Returns ``(SurfaceSet, objects)``.
+    Positions are the objects' current ones (the shape shown), or with ``rest`` their unsmoothed
+    ones (``anatomesh_rest``). No lattice (the live cache adds it). Returns ``(SurfaceSet, objects)``.
     """
     from ..core.model.errors import AnatomeshError
     from ..core.model.surfaceset import SurfaceSet
@@ -37,7 +38,9 @@ def surface_set_from_objects(objects) -> Tuple[object, List]:
     parts = []
     for o in objects:
         vid = bridge.point_attribute(o.data, bridge.SHARED_INDEX_ATTRIBUTE, "int")
-        parts.append((o, bridge.positions(o.data), bridge.triangles(o.data), vid.astype(np.int64)))
+        pos = bridge.point_attribute(o.data, bridge.REST_ATTRIBUTE, "vector") if rest else None
+        pos = bridge.positions(o.data) if pos is None else pos
+        parts.append((o, pos, bridge.triangles(o.data), vid.astype(np.int64)))
     n = 1 + max(int(vid.max()) for _, _, _, vid in parts if vid.size)
     verts = np.zeros((n, 3), np.float32)
     occ_faces, occ_owner, occ_copy = [], [], []
@@ -78,7 +81,7 @@ def surface_set_from_objects(objects) -> Tuple[object, List]:
     aff = objects[0].get("anatomesh_affine") if objects else None
     affine = np.asarray(list(aff), np.float64).reshape(4, 4) if aff is not None and len(aff) == 16 \
         else np.eye(4)
-    ss = SurfaceSet(verts, faces, np.c_[inside, outside], np.zeros((n, 3), np.int32), affine,
+    ss = SurfaceSet(verts, faces, np.c_[inside, outside], None, affine,
                     space=str(objects[0].get("anatomesh_space", "RAS")), splits=rows, background=0)
     return ss, [o for o, _, _, _ in parts]
 
@@ -146,7 +149,7 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     collection["anatomesh_decimation_max_error_mm"] = max(r["hausdorff_mm"] for r in results.values())
     # the decimated shape is the new rest shape of live smoothing
     live.forget(collection.name)
-    live.set_scan_settings(collection, smooth_iterations=0)
+    live.set_scan_settings(collection, smooth_method="NONE")
     return results
 
 
@@ -154,6 +157,8 @@ def _write(obj, vertices, faces, vertex_ids) -> None:
     me = obj.data
     bridge.set_geometry(me, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
+    if live.LATTICE_ATTRIBUTE in me.attributes:  # decimated vertices left their lattice cells
+        me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])
     if vertex_ids is not None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, vertex_ids, "int")
 

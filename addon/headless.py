@@ -15,12 +15,12 @@ the current file's contents, so it refuses to run in an interactive Blender sess
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Optional, Sequence, Tuple
 
 import bpy
-import numpy as np
 
 from . import live, scan, scene
 
@@ -87,35 +87,22 @@ def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple
 
 
 def result_to_scene(context, result) -> bpy.types.Collection:
-    """Add the result's surfaces as the Extract button would; returns the scan collection."""
-    sset = getattr(result, "surface_set", None)
-    items = []
-    for m in result.surfaces:
-        if not m.n_faces:
-            continue
-        shared = np.asarray(m.meta["vertex_ids"], np.int64) if sset is not None else None
-        items.append((m, m.value, m.name, tuple(m.color)[:3], shared))
-    surface = None
-    if sset is not None:
-        surface = scan.set_surface(sset)
-        if _decimated(result):
-            surface.lattice = None  # decimated vertices left their voxel corners: box around them
-    warnings = list(result.volume.warnings) + list(getattr(sset, "warnings", []) or [])
-    coll = scan.scan_to_scene(context, result.volume, items, surface, warnings)
+    """Add the result's surfaces as the Extract button would (the run smoothed them already:
+    smoothing "As extracted"); returns the scan collection."""
+    items = [(m, 0) for m in result.surfaces if m.n_faces]
+    sset = result.surface_set
+    if result.decimation is not None:  # decimated vertices left their voxel corners: box around them
+        sset = dataclasses.replace(sset, lattice=None)
+    warnings = list(result.volume.warnings) + list(sset.warnings or [])
+    coll = scan.scan_to_scene(context, result.volume, items, [sset], warnings)
     scan.group_layers(coll, result.volume)  # overlapping structures: one child collection per layer
-    live.set_scan_settings(coll, smooth_iterations=0)  # the pipeline smoothed already
+    live.set_scan_settings(coll, smooth_method="NONE")
     recipe = getattr(result, "recipe", None)
     if recipe is not None:
         from ..app.recipe import dump_recipe
 
         coll["anatomesh_recipe"] = dump_recipe(recipe)
     return coll
-
-
-def _decimated(result) -> bool:
-    r = getattr(result, "recipe", None)
-    return r is not None and any(getattr(r, k, None) is not None
-                                 for k in ("decimate", "target_faces", "max_error"))
 
 
 def setup_look(sc: bpy.types.Scene, collection: bpy.types.Collection,

@@ -7,8 +7,6 @@ import bpy
 from .common import abspath, active_scan, load_volume
 
 
-#: UI smoothing method → core filter name (TAUBIN with "Stay in voxel" is core's "organ" preset)
-_UI_TO_CORE = {"LAPLACIAN": "laplacian", "HC": "hc", "MEAN_CURVATURE": "mean_curvature"}
 
 
 #: UI export format → core output format
@@ -29,8 +27,7 @@ def recipe_from_scene(context):
         r.levels = [float(item.value) for item in s.levels if item.include]
     coll = active_scan(context)
     st = coll.anatomesh if coll is not None else s
-    _smoothing_to_recipe(r, st.smooth_method, st.smooth_iterations, st.smooth_strength,
-                         st.smooth_max_deviation, st.keep_in_cell)
+    smoothing_recipe(st, r)
     d = getattr(context.scene, "anatomesh_decimate", None)  # the Decimate panel (decimate_ui)
     if d is not None and coll is not None and "anatomesh_decimation_max_error_mm" in coll:
         # the scan was decimated: the recipe decimates to the panel's target too
@@ -60,37 +57,32 @@ def _print_to_recipe(r, p) -> None:
         r.min_gap = float(p.min_gap)
 
 
-def _smoothing_to_recipe(r, method: str, iterations: int, strength: float, max_deviation: float,
-                         keep_in_cell: bool) -> None:
-    if method == "NONE" or iterations <= 0:
-        r.smooth = "none"
-        return
-    if method == "TAUBIN":
-        r.smooth = "organ" if keep_in_cell else "taubin"
-    else:
-        r.smooth = _UI_TO_CORE.get(method, "taubin")
-    r.iterations = int(iterations)
-    if method in ("TAUBIN", "LAPLACIAN", "HC"):
-        r.lam = float(strength)
-    r.max_deviation = float(max_deviation) if max_deviation > 0 else None
+def smoothing_recipe(st, recipe=None):
+    """The smoothing settings ``st`` (the scene's defaults or a scan's, see
+    :func:`anatomesh.addon.ui.props.smoothing_properties`) as a Recipe's smoothing fields, in
+    ``recipe`` (default: a new Recipe). 0 means "the method's own"; the same settings give the
+    same surfaces as ``anatomesh mesh`` with them."""
+    from ..app.recipe import Recipe
+
+    r = recipe if recipe is not None else Recipe()
+    r.smooth = st.smooth_method.lower()
+    r.iterations = int(st.smooth_iterations) if st.smooth_iterations > 0 else None
+    r.lam = float(st.smooth_strength) if st.smooth_strength > 0 else None
+    r.mu = float(st.smooth_mu) if st.smooth_mu < 0 else None
+    r.max_deviation = float(st.smooth_max_deviation) if st.smooth_max_deviation > 0 else None
+    r.damping_distance = float(st.smooth_damping) if st.smooth_damping > 0 else None
+    r.staircase = st.smooth_staircase.lower()
+    return r
 
 
 def smoothing_to_ui(recipe) -> dict:
-    """The Smooth panel's values for a recipe's smoothing (method, iterations, strength, ...)."""
-    from ..core.smooth.driver import PRESETS
-
-    name = (recipe.smooth or "none").lower()
-    preset = PRESETS.get(name, {})
-    if name == "none":
-        return dict(smooth_method="NONE", smooth_iterations=0)
-    method = {"laplacian": "LAPLACIAN", "hc": "HC", "mean_curvature": "MEAN_CURVATURE"}.get(
-        preset.get("method", name), "TAUBIN")
-    out = dict(smooth_method=method,
-               smooth_iterations=int(recipe.iterations or preset.get("iterations", 20)),
-               smooth_strength=float(recipe.lam if recipe.lam is not None else preset.get("lam", 0.5)),
-               smooth_max_deviation=float(recipe.max_deviation or 0.0),
-               keep_in_cell=preset.get("constraint", "cell") == "cell")
-    return out
+    """The smoothing settings of the panels for a recipe's ``[smoothing]`` (the inverse of
+    :func:`smoothing_recipe`)."""
+    return dict(smooth_method=(recipe.smooth or "none").upper(),
+                smooth_iterations=int(recipe.iterations or 0), smooth_strength=float(recipe.lam or 0.0),
+                smooth_mu=float(recipe.mu or 0.0), smooth_max_deviation=float(recipe.max_deviation or 0.0),
+                smooth_damping=float(recipe.damping_distance or 0.0),
+                smooth_staircase=(recipe.staircase or "auto").upper())
 
 
 def apply_recipe(context, recipe, extract: bool = False) -> None:

@@ -2,7 +2,7 @@
 functions as the command line, and add them to the scene (collection, objects, live-smoothing cache)."""
 from __future__ import annotations
 
-from typing import List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import bpy
 import numpy as np
@@ -101,6 +101,30 @@ def chosen_levels(settings, text: str) -> List[Tuple[float, str, Tuple[float, fl
     return [(item.value, item.name, tuple(item.color)) for item in settings.levels if item.include]
 
 
+def extraction_recipe(settings, volume, labels_text: str = "", levels_text: str = ""):
+    """The Recipe of an extraction from the panel (the ticked rows, or ``labels_text`` /
+    ``levels_text``) and the rows' names and colours {value: (name, colour)}."""
+    from ..app.recipe import Recipe
+
+    recipe = Recipe(input=str(volume.meta.get("source", "")), space=volume.space)
+    if volume.is_label_map:
+        chosen = chosen_labels(settings, volume, labels_text)
+        if not chosen:
+            from ..core.model.errors import AnatomeshError
+
+            raise AnatomeshError("no labels chosen; tick at least one label in the list",
+                                 volume.meta.get("source"))
+        recipe.labels = [v for v, _, _ in chosen]
+    else:
+        chosen = chosen_levels(settings, levels_text)
+        if not chosen:
+            from ..core.model.errors import AnatomeshError
+
+            raise AnatomeshError("no isovalue chosen; tick or add a level", volume.meta.get("source"))
+        recipe.levels = [float(v) for v, _, _ in chosen]
+    return recipe, {_key(v): (name, tuple(color)) for v, name, color in chosen}
+
+
 def object_props(volume, value, name) -> dict:
     return {
         "anatomesh_value": float(value) if not float(value).is_integer() else int(value),
@@ -135,10 +159,13 @@ def frame_viewports(context, collection) -> None:
                     pass
 
 
-def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence = (),
+def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
                      render_method: str = "DITHERED", progress=None) -> bpy.types.Collection:
-    """Extract surfaces (label shells or isosurfaces) and add them as objects in a new collection."""
-    from ..core.model.errors import AnatomeshError
+    """Extract the surfaces ``recipe`` asks for (labels or levels) with the command line's stage
+    functions (:func:`anatomesh.app.stages.layers_of`, :func:`~anatomesh.app.stages.extract`) and
+    add them as objects in a new collection; ``looks`` {value: (name, colour)} overrides the
+    names and colours (the Labels panel's rows). Not smoothed yet (:func:`live.smooth_collection`)."""
+    from ..app import stages
 
     global _KERNELS_WARM
     if not _KERNELS_WARM:
@@ -146,64 +173,50 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
         print(f"Anatomesh: {note}")
         if progress is not None:
             progress(0.0, note)
-    items = []  # (core Mesh, value, name, colour, shared index or None)
-    warnings = []
-    if volume.is_label_map:
-        if not labels:
-            raise AnatomeshError("no labels chosen; tick at least one label in the list",
-                                 volume.meta.get("source"))
-        from ..core.extract.multilabel import label_surfaces
-        from ..core.model.segmentation import as_layers, stack_surface_sets
-
-        wanted = [v for v, _, _ in labels]
-        layer_sets = [label_surfaces(layer, values=[v for v in wanted if v in (layer.labels or {})] or None,
-                                     progress=progress) for layer in as_layers(volume)
-                      if any(v in (layer.labels or {}) for v in wanted) or len(as_layers(volume)) == 1]
-        sset = stack_surface_sets(layer_sets)
-        shells = {int(round(float(m.value))): m for m in sset.shells()}
-        surface = set_surface(sset)
-        warnings += list(sset.warnings)
-        for v, name, color in labels:
-            m = shells.get(int(v))
-            if m is not None and m.n_faces:
-                items.append((m, v, name, color, shared_index(m)))
-    else:
-        if not levels:
-            raise AnatomeshError("no isovalue chosen; tick or add a level", volume.meta.get("source"))
-        from ..core.extract.isosurface import isosurfaces
-
-        meshes = isosurfaces(volume, [lv for lv, _, _ in levels], progress=progress)
-        surface = None
-        for (lv, name, color), m in zip(levels, meshes):
-            if m.n_faces:
-                items.append((m, lv, name, color, None))
-            else:
-                warnings.append(f"isovalue {lv:g} ({name}) gives no surface: it is outside the data range")
-    coll = scan_to_scene(context, volume, items, surface, warnings, render_method)
+    layers = [stages.extract(layer, lrecipe, progress) for layer, lrecipe in stages.layers_of(volume, recipe)]
+    items = [(m, k) for k, sset in enumerate(layers) for m in sset.shells() if m.n_faces]
+    warnings = [w for sset in layers for w in sset.warnings]
+    if not volume.is_label_map:
+        made = {float(m.value) for m, _ in items}
+        warnings += [f"isovalue {lv:g} gives no surface: it is outside the data range"
+                     for lv in recipe.levels if float(lv) not in made]
+    coll = scan_to_scene(context, volume, items, layers, warnings, render_method, looks)
     group_layers(coll, volume)
-    if not _KERNELS_WARM:  # so the first slider move is as fast as the next
-        if progress is not None:
-            progress(1.0, "first run: compiling the live smoothing kernels once")
-        live.warm_up(live.scan_surface(coll))
     _KERNELS_WARM = True
     return coll
 
 
-def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.ScanSurface"],
-                  warnings: Sequence[str] = (), render_method: str = "DITHERED") -> bpy.types.Collection:
+def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: Sequence[str] = (),
+                  render_method: str = "DITHERED", looks: Optional[Dict] = None) -> bpy.types.Collection:
     """Add extracted surfaces to the scene: a new collection named after the scan, one object
     per item, and the live-smoothing cache.
 
-    ``items``: ``(core Mesh, value, name, colour, shared index or None)``; ``surface``: the
-    label map's shared :class:`live.ScanSurface` (None: independent isosurfaces, stacked here).
-    Used by :func:`extract_to_scene` and by the headless pipeline (``addon/headless.py``).
+    ``items``: ``(shell Mesh, layer index)`` with ``meta["vertex_ids"]`` into ``layers[k]`` (the
+    unsmoothed SurfaceSets the live smoothing starts from). Used by :func:`extract_to_scene` and
+    by the headless pipeline (``addon/headless.py``).
     """
     from ..core.model.errors import AnatomeshError
 
     if not items:
         raise AnatomeshError("nothing to show: the chosen labels/levels give no surface",
                              volume.meta.get("source"))
+    coll = _scan_collection(context, volume, warnings, render_method)
+    members = []
+    for m, k in items:
+        name, color = (looks or {}).get(_key(m.value), (m.name, tuple(m.color)[:3]))
+        ids = shared_index(m)
+        obj = scene.add_surface(coll, name, m.vertices, m.faces, object_props(volume, m.value, name),
+                                color, render_method, shared_index=ids, vertex_colors=m.vertex_colors)
+        obj[live.LAYER_PROPERTY] = k + 1
+        live.store([(obj, ids)], k, layers[k])
+        members.append((obj.name, k, ids))
+    live.remember(coll, live.LiveScan(list(layers), members))
+    context.scene.anatomesh.last_collection = coll.name
+    return coll
 
+
+def _scan_collection(context, volume, warnings, render_method) -> bpy.types.Collection:
+    """A new scan collection in mm, named after the scan, with its source, space and warnings."""
     scene.setup_units(context.scene)
     src = volume.meta.get("source", "") or "scan"
     coll = scene.new_collection(scene.scan_name(src))
@@ -214,24 +227,13 @@ def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.Scan
     coll["anatomesh_space"] = volume.space
     coll["anatomesh_units"] = "mm"
     coll["anatomesh_warnings"] = list(warnings)
-    members, offsets = [], 0
-    pieces_v, pieces_f = [], []
-    for m, value, name, color, shared in items:
-        obj = scene.add_surface(coll, name, m.vertices, m.faces, object_props(volume, value, name),
-                                color, render_method, shared_index=shared, vertex_colors=m.vertex_colors)
-        if shared is None:  # independent surfaces: stack them into one array set for smoothing
-            shared = np.arange(offsets, offsets + m.n_vertices)
-            pieces_v.append(m.vertices)
-            pieces_f.append(m.faces + offsets)
-            offsets += m.n_vertices
-        members.append((obj.name, np.asarray(shared, np.int64)))
-    if surface is None:
-        surface = live.ScanSurface(np.concatenate(pieces_v), np.concatenate(pieces_f).astype(np.int32),
-                                   affine=np.asarray(volume.affine))
-    surface.members = members
-    live.remember(coll, surface)
-    context.scene.anatomesh.last_collection = coll.name
     return coll
+
+
+def _key(value):
+    """Label values and isovalues as dictionary keys alike (5 and 5.0 are one key)."""
+    v = float(value)
+    return int(v) if v.is_integer() else v
 
 
 def group_layers(coll, volume) -> None:
@@ -254,14 +256,6 @@ def group_layers(coll, volume) -> None:
             coll.children.link(children[li])
         children[li].objects.link(obj)
         coll.objects.unlink(obj)
-
-
-def set_surface(sset) -> "live.ScanSurface":
-    """The live-smoothing surface of a core SurfaceSet (face groups: the pair of structures)."""
-    fl = np.sort(sset.face_labels.astype(np.int64), axis=1)  # the unordered pair of structures
-    _, groups = np.unique(fl[:, 0] * (int(fl.max(initial=0)) + 1) + fl[:, 1], return_inverse=True)
-    return live.ScanSurface(sset.vertices, sset.faces, face_groups=groups.ravel().astype(np.int64),
-                            lattice=sset.lattice, affine=np.asarray(sset.affine))
 
 
 def shared_index(mesh) -> np.ndarray:

@@ -8,8 +8,10 @@ Runs inside Blender or with Blender as a Python module, from a checkout of this 
 What it does, with the add-on's own operators (the same ones the sidebar buttons call):
 
 1. enables the Anatomesh add-on from this checkout (unless an installed copy is enabled);
-2. ``anatomesh.import_scan``: reads the label map with its label table (names, colours);
-3. ``anatomesh.smooth``: Taubin smoothing, every vertex kept inside its voxel cell;
+2. ``anatomesh.import_scan``: reads the label map with its label table (names, colours) and
+   extracts it, smoothed with the command line's default (``organ``: Taubin, every vertex kept
+   inside its voxel cell, volumes restored, nothing crossing);
+3. ``anatomesh.smooth``: the same driver with other settings when ``--iterations`` is given;
 4. makes the lungs see-through (opacity + oriented transparency), frames a camera from the
    patient's front, lights the scene, saves a .blend and renders a PNG with Cycles on the CPU.
 
@@ -18,7 +20,7 @@ Options (defaults in brackets)::
     --input PATH       label map (NIfTI/NRRD/DICOM)  [data/sample/example_seg.nii.gz]
     --labels PATH      label table (JSON, Slicer .ctbl, ITK-SNAP)  [the sample's JSON]
     --out DIR          where the .blend and .png go  [demo_out/]
-    --iterations N     smoothing iterations  [20]
+    --iterations N     smoothing iterations  [the organ preset's own: 20]
     --space RAS|LPS    coordinates of the vertices  [RAS]
     --samples N        Cycles samples  [32]
     --size W H         image size in pixels  [960 540]
@@ -55,7 +57,7 @@ def parse_args():
     ap.add_argument("--input", default=str(SAMPLE / "example_seg.nii.gz"))
     ap.add_argument("--labels", default=str(SAMPLE / "label_names_total_and_total_mr.json"))
     ap.add_argument("--out", default=str(REPO / "demo_out"))
-    ap.add_argument("--iterations", type=int, default=20)
+    ap.add_argument("--iterations", type=int, default=0, help="0: the organ preset's own")
     ap.add_argument("--space", choices=("RAS", "LPS"), default="RAS")
     ap.add_argument("--samples", type=int, default=32)
     ap.add_argument("--size", type=int, nargs=2, default=(960, 540), metavar=("W", "H"))
@@ -96,7 +98,9 @@ def main():
         bpy.ops.anatomesh.import_scan(filepath=args.input, label_table=args.labels, space=args.space,
                                       extract=True)
         coll = bpy.data.collections[scene.anatomesh.last_collection]
-        bpy.ops.anatomesh.smooth(collection=coll.name, method="TAUBIN", iterations=args.iterations)
+        if args.iterations:
+            bpy.ops.anatomesh.smooth(collection=coll.name, smooth_method="ORGAN",
+                                     smooth_iterations=args.iterations)
     except RuntimeError as err:  # the add-on reports user errors as RuntimeError("Error: ...")
         sys.exit(str(err))
     print(f"{len(coll.objects)} surfaces in '{coll.name}' ({time.perf_counter() - t0:.1f} s)")

@@ -6,18 +6,36 @@ import os
 import time
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
 from .. import live
 from ..common import ProgressReporter, abspath, guarded, load_volume
-from ..scan import chosen_labels, chosen_levels, extract_to_scene, fill_lists, frame_viewports
+from ..scan import extract_to_scene, extraction_recipe, fill_lists, frame_viewports
 from ..ui import props
 
 
 # ---------------------------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------------------------
+def extract_and_smooth(context, vol, labels_text: str = "", levels_text: str = "",
+                       method: str = "SETTINGS", render_method: str = "DITHERED"):
+    """Extract the chosen labels/levels, give the new scan the scene's smoothing settings (or
+    ``method``) and smooth it with the command line's driver: the same surfaces as ``anatomesh
+    mesh`` with those settings (its default ``organ``, unless "As extracted" is chosen)."""
+    settings = context.scene.anatomesh
+    recipe, looks = extraction_recipe(settings, vol, labels_text, levels_text)
+    with ProgressReporter(context, "extracting") as progress:
+        coll = extract_to_scene(context, vol, recipe, looks=looks, render_method=render_method,
+                                progress=progress)
+    values = {k: getattr(settings, k) for k in props.smoothing_properties()}
+    if method != "SETTINGS":
+        values["smooth_method"] = method
+    live.set_scan_settings(coll, **values)
+    if values["smooth_method"] != "NONE":
+        with ProgressReporter(context, "smoothing"):
+            live.smooth_collection(coll)
+    return coll
 
 
 # ---------------------------------------------------------------------------------------------
@@ -66,10 +84,7 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
             what = "labels" if vol.is_label_map else "isovalue presets"
             self.report({"INFO"}, f"Read {os.path.basename(self.filepath)}: {n} {what}")
             return {"FINISHED"}
-        with ProgressReporter(context, "extracting") as progress:
-            coll = extract_to_scene(context, vol, labels=chosen_labels(settings, vol, ""),
-                                    levels=chosen_levels(settings, ""), render_method=self.render_method,
-                                    progress=progress)
+        coll = extract_and_smooth(context, vol, render_method=self.render_method)
         return _finish_extraction(self, context, coll, t0)
 
 
@@ -99,13 +114,9 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
                                                       "values/names separated by commas")
     levels: StringProperty(name="Levels", description="'' = ticked isovalues, or numbers separated "
                                                       "by commas (scalar scans)")
-    smooth_method: EnumProperty(name="Smoothing", items=props.SMOOTH_ITEMS, default="TAUBIN")
-    smooth_iterations: IntProperty(name="Iterations", default=-1, min=-1, max=1000,
-                                   description="-1: the Smooth panel's default")
-    smooth_strength: FloatProperty(name="Strength", default=-1.0, min=-1.0, max=1.0)
-    smooth_max_deviation: FloatProperty(name="Max deviation", default=-1.0, min=-1.0, unit="LENGTH")
-    keep_in_cell: EnumProperty(name="Stay in voxel", items=(("SETTINGS", "As set", ""), ("YES", "Yes", ""),
-                                                           ("NO", "No", "")), default="SETTINGS")
+    smooth_method: EnumProperty(name="Smoothing", items=(("SETTINGS", "As set", "The Smooth panel's "
+                                                                      "defaults"),) + props.SMOOTH_ITEMS,
+                                default="SETTINGS")
 
     @guarded
     def execute(self, context):
@@ -119,28 +130,17 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         series = self.series or (settings.series if not self.filepath else "")
         table = self.label_table or (settings.label_table if not self.filepath else "")
         t0 = time.perf_counter()
-        with ProgressReporter(context, "extracting") as progress:
-            vol = load_volume(path, series, table, space, progress=None, grid=settings.grid)
+        with ProgressReporter(context, "reading") as progress:
+            vol = load_volume(path, series, table, space, progress=progress, grid=settings.grid)
             if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
                 settings.filepath, settings.series, settings.label_table = self.filepath, series, table
                 fill_lists(settings, vol)
             elif (vol.is_label_map and not len(settings.labels)) or (
                     not vol.is_label_map and not len(settings.levels)):
                 fill_lists(settings, vol)
-            coll = extract_to_scene(
-                context, vol, labels=chosen_labels(settings, vol, self.labels) if vol.is_label_map else (),
-                levels=chosen_levels(settings, self.levels) if not vol.is_label_map else (),
-                render_method=settings.render_method, progress=progress)
-        iters = settings.smooth_iterations if self.smooth_iterations < 0 else self.smooth_iterations
-        strength = settings.smooth_strength if self.smooth_strength < 0 else self.smooth_strength
-        maxdev = settings.smooth_max_deviation if self.smooth_max_deviation < 0 else self.smooth_max_deviation
-        method = self.smooth_method if self.properties.is_property_set("smooth_method") else settings.smooth_method
-        in_cell = settings.keep_in_cell if self.keep_in_cell == "SETTINGS" else self.keep_in_cell == "YES"
-        live.set_scan_settings(coll, smooth_method=method, smooth_iterations=iters, smooth_strength=strength,
-                               smooth_max_deviation=maxdev, keep_in_cell=in_cell)
-        if iters > 0 and method != "NONE":
-            with ProgressReporter(context, "smoothing"):
-                live.smooth_collection(coll, method, iters, strength, maxdev, in_cell)
+        coll = extract_and_smooth(context, vol, self.labels if vol.is_label_map else "",
+                                  self.levels if not vol.is_label_map else "", self.smooth_method,
+                                  settings.render_method)
         return _finish_extraction(self, context, coll, t0)
 
 

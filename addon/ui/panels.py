@@ -83,32 +83,36 @@ class ANATOMESH_PT_smooth(_Base, Panel):
         layout = self.layout
         coll = active_scan(context)
         if coll is None:
-            s = context.scene.anatomesh
             layout.label(text="Defaults for the next extraction:")
-            col = layout.column(align=True)
-            for p in ("smooth_method", "smooth_iterations", "smooth_strength", "smooth_max_deviation",
-                      "keep_in_cell"):
-                col.prop(s, p)
+            _smoothing_props(layout, context.scene.anatomesh)
             return
         st = coll.anatomesh
         layout.label(text=coll.name, icon="OUTLINER_COLLECTION")
-        col = layout.column(align=True)
-        col.prop(st, "smooth_method")
-        col.prop(st, "smooth_iterations")
-        col.prop(st, "smooth_strength")
-        col.prop(st, "smooth_max_deviation")
-        col.prop(st, "keep_in_cell")
+        _smoothing_props(layout, st)
         row = layout.row(align=True)
         row.prop(st, "live")
-        op = row.operator("anatomesh.smooth", text="Apply", icon="CHECKMARK")
-        op.collection, op.method, op.iterations = coll.name, st.smooth_method, st.smooth_iterations
-        op.strength, op.max_deviation, op.apply = st.smooth_strength, st.smooth_max_deviation, True
-        op.keep_in_cell = st.keep_in_cell
+        _smooth_button(row, coll, "Apply", apply=True)
         if not st.live:
-            op = layout.operator("anatomesh.smooth", text="Smooth Now")
-            op.collection, op.method, op.iterations = coll.name, st.smooth_method, st.smooth_iterations
-            op.strength, op.max_deviation = st.smooth_strength, st.smooth_max_deviation
-            op.keep_in_cell = st.keep_in_cell
+            _smooth_button(layout, coll, "Smooth Now")
+
+
+def _smoothing_props(layout, settings) -> None:
+    """The recipe's smoothing settings: method first, the overrides (0: the method's own) below."""
+    layout.prop(settings, "smooth_method")
+    if settings.smooth_method == "NONE":
+        return
+    col = layout.column(align=True)
+    for name in ("smooth_iterations", "smooth_strength", "smooth_mu", "smooth_max_deviation",
+                 "smooth_damping", "smooth_staircase"):
+        col.prop(settings, name)
+
+
+def _smooth_button(layout, coll, text: str, apply: bool = False) -> None:
+    op = layout.operator("anatomesh.smooth", text=text, icon="CHECKMARK" if apply else "NONE")
+    op.collection, op.apply = coll.name, apply
+    for name in ("smooth_method", "smooth_iterations", "smooth_strength", "smooth_mu",
+                 "smooth_max_deviation", "smooth_damping", "smooth_staircase"):
+        setattr(op, name, getattr(coll.anatomesh, name))
 
 
 class ANATOMESH_PT_look(_Base, Panel):

@@ -23,16 +23,45 @@ SPACE_ITEMS = (
                    "Blender's Front view then looks at the patient's face"),
 )
 
-#: smoothing methods offered in the UI; the identifiers are core's method names in upper case
+#: smoothing presets and filters: the recipe's ``[smoothing] method`` (and ``--smooth``) in upper
+#: case, so the same choice gives the same surfaces in every door
 SMOOTH_ITEMS = (
-    ("NONE", "None", "No smoothing: the surfaces as extracted"),
-    ("TAUBIN", "Taubin", "Taubin λ|μ low-pass filter: removes the voxel staircase and barely shrinks "
-                         "(Taubin 1995); the organ default"),
-    ("LAPLACIAN", "Laplacian", "Laplacian (umbrella) smoothing: strongest, but shrinks thin parts"),
+    ("ORGAN", "Organ (default)", "Taubin λ|μ, every vertex kept in its voxel cell (Gibson 1998), "
+                                 "volumes restored, no folds, nothing crossing: the command line's default"),
+    ("LIGHT", "Light", "As Organ, fewer iterations: removes the staircase's shading only"),
+    ("STRONG", "Strong", "As Organ, more iterations: flat or large structures, thick slices"),
+    ("TAUBIN", "Taubin (unbounded)", "Classic Taubin without the voxel-cell bound (Taubin 1995)"),
+    ("LAPLACIAN", "Laplacian", "Laplacian (umbrella) smoothing, in the voxel cell: shrinks thin parts"),
     ("HC", "HC Laplacian", "Laplacian with the HC correction against shrinkage (Vollmer et al. 1999)"),
-    ("MEAN_CURVATURE", "Mean curvature flow", "Cotangent weights (Desbrun et al. 1999): moves "
-                                             "along the normal only, keeps the triangles' layout"),
+    ("MEAN_CURVATURE", "Mean curvature flow", "Cotangent weights (Desbrun et al. 1999): moves along "
+                                             "the normal only"),
+    ("NORMAL_MEAN", "Normal filter (mean)", "Mean filtering of face normals (Yagou et al. 2002)"),
+    ("NORMAL_MEDIAN", "Normal filter (median)", "Median filtering of face normals: keeps edges"),
+    ("NONE", "As extracted", "No smoothing: the surfaces as extracted (voxel faces, exact volumes)"),
 )
+STAIRCASE_ITEMS = (("AUTO", "Auto", "Extra slice-axis passes when slices are >= 1.5x the in-plane spacing"),
+                   ("ON", "On", "Extra slice-axis passes"), ("OFF", "Off", "No slice-axis passes"))
+
+
+def smoothing_properties(update=None) -> dict:
+    """The smoothing settings (the recipe's ``[smoothing]`` section) as Blender properties, for the
+    scene's defaults and each scan collection (``update``: re-smooth live)."""
+    kw = {"update": update} if update is not None else {}
+    return dict(
+        smooth_method=EnumProperty(name="Method", items=SMOOTH_ITEMS, default="ORGAN", **kw),
+        smooth_iterations=IntProperty(name="Iterations", default=0, min=0, soft_max=100, max=1000,
+                                      description="Smoothing passes (0: the method's own)", **kw),
+        smooth_strength=FloatProperty(name="Strength λ", default=0.0, min=0.0, max=1.0,
+                                      description="Step of each pass (0: the method's own)", **kw),
+        smooth_mu=FloatProperty(name="Taubin μ", default=0.0, min=-1.0, max=0.0,
+                                description="Taubin's negative step (0: the method's own)", **kw),
+        smooth_max_deviation=FloatProperty(name="Max deviation", default=0.0, min=0.0, soft_max=5.0,
+                                           unit="LENGTH", description="No vertex moves farther than this "
+                                           "from its extracted position, mm (0: no cap)", **kw),
+        smooth_damping=FloatProperty(name="Damping distance", default=0.0, min=0.0, soft_max=10.0,
+                                     unit="LENGTH", description="Smooth less where another structure "
+                                     "is closer than this, mm (Mönch et al. 2010; 0: off)", **kw),
+        smooth_staircase=EnumProperty(name="Staircase", items=STAIRCASE_ITEMS, default="AUTO", **kw))
 
 RENDER_METHOD_ITEMS = (
     ("DITHERED", "Dithered", "Depth-correct transparency for surfaces nested inside each other "
@@ -114,15 +143,6 @@ class ANATOMESH_PG_settings(PropertyGroup):
     levels: CollectionProperty(type=ANATOMESH_PG_level)
     level_index: IntProperty(default=0)
 
-    smooth_method: EnumProperty(name="Method", items=SMOOTH_ITEMS, default="TAUBIN")
-    smooth_iterations: IntProperty(name="Iterations", default=0, min=0, soft_max=100, max=1000)
-    smooth_strength: FloatProperty(name="Strength", default=0.5, min=0.0, max=1.0)
-    smooth_max_deviation: FloatProperty(name="Max deviation", default=0.0, min=0.0, soft_max=5.0,
-                                        unit="LENGTH", description="Cap on how far smoothing moves "
-                                        "a vertex, mm (0: no cap)")
-    keep_in_cell: BoolProperty(name="Stay in voxel", default=True,
-                               description="Keep every vertex inside its voxel cell (Gibson 1998): "
-                                           "smooth, yet never farther than half a voxel per axis")
     render_method: EnumProperty(name="Transparency", items=RENDER_METHOD_ITEMS, default="DITHERED")
 
     export_dir: StringProperty(name="Folder", subtype="DIR_PATH", default="//anatomesh_export/")
@@ -137,19 +157,6 @@ class ANATOMESH_PG_scan(PropertyGroup):
     is_scan: BoolProperty(default=False)
     source: StringProperty(name="Source", subtype="FILE_PATH")
     space: StringProperty(name="Space", default="RAS")
-    smooth_method: EnumProperty(name="Method", items=SMOOTH_ITEMS, default="TAUBIN", update=_live_update)
-    smooth_iterations: IntProperty(name="Iterations", default=0, min=0, soft_max=100, max=1000,
-                                   update=_live_update,
-                                   description="Smoothing passes (0: as extracted); changes apply live")
-    smooth_strength: FloatProperty(name="Strength", default=0.5, min=0.0, max=1.0, update=_live_update,
-                                   description="Step size of each pass (λ)")
-    smooth_max_deviation: FloatProperty(name="Max deviation", default=0.0, min=0.0, soft_max=5.0,
-                                        unit="LENGTH", update=_live_update,
-                                        description="No vertex moves farther than this from its "
-                                                    "extracted position, mm (0: no cap)")
-    keep_in_cell: BoolProperty(name="Stay in voxel", default=True, update=_live_update,
-                               description="Keep every vertex inside its voxel cell (Gibson 1998): "
-                                           "smooth, yet never farther than half a voxel per axis")
     live: BoolProperty(name="Live", default=True,
                        description="Re-smooth while the values change (turn off for huge scans)")
     alpha: FloatProperty(name="Opacity", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
@@ -158,6 +165,11 @@ class ANATOMESH_PG_scan(PropertyGroup):
                            description="More opaque toward silhouettes (Stalling et al. 1999)")
     render_method: EnumProperty(name="Transparency", items=RENDER_METHOD_ITEMS, default="DITHERED",
                                 update=_look_update)
+
+
+# the smoothing settings: the scene's defaults for the next extraction, and each scan's own (live)
+ANATOMESH_PG_settings.__annotations__.update(smoothing_properties())
+ANATOMESH_PG_scan.__annotations__.update(smoothing_properties(_live_update))
 
 
 TARGET_ITEMS = (

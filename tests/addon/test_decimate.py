@@ -62,15 +62,14 @@ def test_apply_fewer_faces_seams_shared_errors_stored_and_undo(scan, mods):
     shared_before = _shared_positions_agree(bridge, objs)
     assert shared_before > 1000                          # organs touch in this map
     bpy.ops.ed.undo_push(message="extracted")
-    # smooth first: Apply decimates the shape shown and bakes it
-    scan.anatomesh.smooth_iterations = 5
+    # smoothed at extraction (the default): Apply decimates the shape shown and bakes it
     assert bpy.ops.anatomesh.decimate_apply(collection=scan.name, target="RATIO",
                                             ratio=0.2) == {"FINISHED"}
     bpy.ops.ed.undo_push(message="decimated")
     after = _faces(scan)
     assert all(after[n] < before[n] for n in before)
     assert sum(after.values()) < 0.35 * sum(before.values())
-    assert scan.anatomesh.smooth_iterations == 0
+    assert scan.anatomesh.smooth_method == "NONE"
     # seams: shared vertices identical, and each interface triangle used by exactly two organs
     assert _shared_positions_agree(bridge, objs) > 100
     inter = _interface_faces(bridge, objs)
@@ -99,7 +98,7 @@ def test_max_error_target_is_honoured_per_organ(scan, mods):
     assert sum(_faces(scan).values()) < 0.8 * sum(before.values())
     assert scan["anatomesh_decimation_max_error_mm"] <= 1.5
     # the live cache was rebuilt from the decimated objects: smoothing still works on them
-    scan.anatomesh.smooth_iterations = 3
+    scan.anatomesh.smooth_method = "LIGHT"
     assert _shared_positions_agree(bridge, list(scan.objects)) > 100
 
 

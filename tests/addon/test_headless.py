@@ -44,7 +44,7 @@ def test_blend_holds_the_scene_the_ui_builds(made, addon):
     bpy.ops.wm.open_mainfile(filepath=str(out / "example_seg.blend"))
     coll = bpy.data.collections["example_seg"]
     assert coll.anatomesh.is_scan and coll.anatomesh.space == "RAS"
-    assert coll.anatomesh.smooth_iterations == 0  # the pipeline smoothed already: no second pass
+    assert coll.anatomesh.smooth_method == "NONE"  # the pipeline smoothed already: no second pass
     assert "[decimation]" in coll["anatomesh_recipe"]
     objs = {o.name: o for o in coll.objects}
     assert sorted(objs) == sorted(LABELS)

@@ -24,8 +24,8 @@ def test_save_writes_the_ticked_labels_smoothing_and_export(empty_scene, recipes
     s = empty_scene.anatomesh
     for item in s.labels:
         item.include = item.name in ("liver", "spleen", "aorta")
-    s.smooth_method, s.smooth_iterations, s.smooth_strength = "TAUBIN", 15, 0.4
-    s.smooth_max_deviation, s.keep_in_cell = 0.8, True
+    s.smooth_method, s.smooth_iterations, s.smooth_strength = "ORGAN", 15, 0.4
+    s.smooth_max_deviation, s.smooth_staircase = 0.8, "OFF"
     s.space, s.export_dir, s.export_format = "LPS", str(tmp_path / "exports"), "GLB"
     path = tmp_path / "recipes" / "mine.toml"
     assert bpy.ops.anatomesh.recipe_save(filepath=str(path)) == {"FINISHED"}
@@ -34,6 +34,7 @@ def test_save_writes_the_ticked_labels_smoothing_and_export(empty_scene, recipes
     values = {item.name: item.value for item in s.labels}
     assert sorted(r.labels) == sorted([values["liver"], values["spleen"], values["aorta"]])
     assert (r.smooth, r.iterations, r.lam, r.max_deviation) == ("organ", 15, pytest.approx(0.4), pytest.approx(0.8))
+    assert r.mu is None and r.damping_distance is None and r.staircase == "off"
     assert r.space == "LPS" and r.formats == ["glb"] and r.out_dir == str(tmp_path / "exports")
     assert 'dir = "../exports"' in path.read_text()  # relative to the recipe's folder
 
