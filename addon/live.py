@@ -29,6 +29,7 @@ import bpy
 import numpy as np
 
 from . import bridge, scene
+from .reassemble import surface_set_from_objects
 
 LATTICE_ATTRIBUTE = "anatomesh_lattice"
 LAYER_PROPERTY = "anatomesh_layer"
@@ -85,9 +86,7 @@ def live_scan(collection: bpy.types.Collection) -> LiveScan:
 
 def rebuild(objects) -> LiveScan:
     """Reassemble each layer's SurfaceSet from its objects' rest positions, shared vertex ids and
-    lattice points (:func:`anatomesh.addon.decimation.surface_set_from_objects`)."""
-    from .decimation import surface_set_from_objects
-
+    lattice points (:func:`anatomesh.addon.reassemble.surface_set_from_objects`)."""
     by_layer: Dict[int, list] = {}
     for o in objects:
         by_layer.setdefault(int(o.get(LAYER_PROPERTY, 0)), []).append(o)

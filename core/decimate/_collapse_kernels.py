@@ -23,7 +23,10 @@ The arrays travel in named tuples:
   (:mod:`._refs_kernels`);
 * :data:`Budget` — ``final_faces`` (stop there), per dense label ``lab_count`` faces now,
   ``lab_target`` faces to keep (-1: none), ``lab_maxerr`` error bound, ``lab_listed`` whether
-  the label's budget applies; ``budgets`` whether any per-label limit exists. Error bounds
+  the label's budget applies, ``lab_whole`` whether its bound is on the whole quadric cost
+  rather than the cost per merged vertex (the conservative fallback of a label the estimate let
+  off its bound: the whole cost bounds every merged plane's squared distance);
+  ``budgets`` whether any per-label limit exists. Error bounds
   (mm²) are on ``cost / W``, the quadric cost per
   merged input vertex (the sum of squared plane distances grows with the number of planes
   merged, not with the distance);
@@ -53,7 +56,7 @@ State = namedtuple("State", ["V", "Q", "W", "F", "FD", "falive", "flab", "vclass
                              "vstamp"])
 Refs = namedtuple("Refs", ["refs", "vstart", "vcount"])
 Budget = namedtuple("Budget", ["final_faces", "lab_count", "lab_target", "lab_maxerr",
-                               "lab_listed", "budgets"])
+                               "lab_listed", "lab_whole", "budgets"])
 Log = namedtuple("Log", ["keep", "drop", "where", "face_death", "stop"])
 Options = namedtuple("Options", ["multi", "cos_max", "q_min"])
 
@@ -127,7 +130,7 @@ def collapse_pass(st, rf, bud, log, opt, live, stamp, tau, start, counts, stats,
     # update per member, and this loop runs once per candidate edge
     V, Q, W, F, FD, falive, flab, vclass, ver, vstamp = st
     refs, vstart, vcount = rf
-    final, lab_count, lab_target, lab_maxerr, lab_listed, budgets = bud
+    final, lab_count, lab_target, lab_maxerr, lab_listed, lab_whole, budgets = bud
     log_keep, log_drop, log_where, face_death, log_stop = log
     nalive, nref, nlog = counts
     fa, fb = np.empty(MAXF, np.int32), np.empty(MAXF, np.int32)
@@ -157,14 +160,15 @@ def collapse_pass(st, rf, bud, log, opt, live, stamp, tau, start, counts, stats,
             nl = _labels_around(flab, fa, na, fb, nb, labs, why == 0 and (opt.multi or budgets))
             w = W[keep] + W[drop] if budgets else 1.0     # merged vertices: error bounds
             if why == 0:
-                why = _budget(lab_count, lab_target, lab_maxerr, lab_listed, labs, nl, cost, w)
+                why = _budget(lab_count, lab_target, lab_maxerr, lab_listed, lab_whole, labs, nl,
+                              cost, w)
             if why == 0:
                 why, token = _topology(F, flab, vclass, opt.multi, fa, na, fb, nb, keep, drop,
                                        labs, nl, mark, token)
             if why == 0:
                 why, cost, px, py, pz = _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep,
-                                                   drop, cost, px, py, pz, tau, lab_maxerr, w,
-                                                   labs, nl, q, stats)
+                                                   drop, cost, px, py, pz, tau, lab_maxerr,
+                                                   lab_whole, w, labs, nl, q, stats)
             if why != 0:
                 stats[why] += 1
                 FD[f0, k0] = -1.0 - e0        # refused: parked until a collapse next to it
@@ -213,8 +217,15 @@ def _labels_around(flab, fa, na, fb, nb, labs, wanted):
     return nl
 
 
+@njit(cache=True, inline="always")
+def _over_error(lab_maxerr, lab_whole, lab, cost, w):
+    """True when ``cost`` (``w`` input vertices merged) is over label ``lab``'s error bound: on
+    ``cost / w``, or on the whole cost for a ``lab_whole`` label."""
+    return cost > lab_maxerr[lab] * (1.0 if lab_whole[lab] else w)
+
+
 @njit(cache=True, fastmath=FAST)
-def _budget(lab_count, lab_target, lab_maxerr, lab_listed, labs, nl, cost, w):
+def _budget(lab_count, lab_target, lab_maxerr, lab_listed, lab_whole, labs, nl, cost, w):
     """ERROR when the error estimate ``cost / w`` (``w`` input vertices merged) is over the
     bound of a label around the edge; BUDGET unless some label around the edge is listed and
     none has reached its face target; else 0."""
@@ -224,7 +235,7 @@ def _budget(lab_count, lab_target, lab_maxerr, lab_listed, labs, nl, cost, w):
         listed = listed or lab_listed[lab]
         if lab_count[lab] <= lab_target[lab]:
             return BUDGET
-        if cost > lab_maxerr[lab] * w:
+        if _over_error(lab_maxerr, lab_whole, lab, cost, w):
             return ERROR
     return 0 if listed else BUDGET
 
@@ -249,7 +260,7 @@ def _topology(F, flab, vclass, multi, fa, na, fb, nb, keep, drop, labs, nl, mark
 
 @njit(cache=True, fastmath=FAST)
 def _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep, drop, cost, px, py, pz, tau,
-               lab_maxerr, w, labs, nl, q, stats):
+               lab_maxerr, lab_whole, w, labs, nl, q, stats):
     """The geometric tests at the planned point; when it flips or slivers a face, the two
     endpoints are tried (subset placement, Garland & Heckbert 1997) while they cost no more than
     ``tau`` and stay within the labels' error bounds (``w`` merged vertices). Returns
@@ -268,7 +279,7 @@ def _placement(V, F, FD, vclass, opt, fa, na, fb, nb, keep, drop, cost, px, py, 
             continue
         within = True
         for j in range(nl):
-            if c2 > lab_maxerr[labs[j]] * w:
+            if _over_error(lab_maxerr, lab_whole, labs[j], c2, w):
                 within = False
         if within and geometry_ok(V, F, FD, fa, na, keep, drop, x, y, z, cos_max, q_min) \
                 and geometry_ok(V, F, FD, fb, nb, keep, drop, x, y, z, cos_max, q_min):

@@ -7,6 +7,7 @@
   simplification using quadric error metrics"; sweeps under a rising cost threshold after Wu &
   Kobbelt 2002, "Fast mesh decimation by multiple-choice techniques") and can log every collapse
   for a progressive mesh (Hoppe 1996, "Progressive meshes");
+* :func:`stray_vertices` finds the input vertices a bounded run pins when it tries again;
 * :func:`surface_lock` and :func:`surfaces_result` take a
   :class:`~anatomesh.core.model.surfaceset.SurfaceSet` in and out (split rows and lattice carried
   over; sets of independent surfaces, ``lattice is None``, work alike);
@@ -66,6 +67,7 @@ class Limits:
     lab_err: np.ndarray       # (K,) float64
     listed: np.ndarray        # (K,) bool
     final: int
+    whole: Optional[np.ndarray] = None   # (K,) bool: bound on the whole cost (None: none)
 
 
 @dataclasses.dataclass
@@ -212,6 +214,7 @@ def collapse(p: Prepared, lim: Limits, progress: Optional[Progress] = None, atte
     st, rf, nref, used_before = _initial_state(p)
     bud = CK.Budget(lim.final, np.bincount(p.dense.ravel(), minlength=len(p.values)).astype(np.int64),
                     lim.lab_target, lim.lab_err, lim.listed,
+                    np.zeros(len(p.values), np.bool_) if lim.whole is None else lim.whole,
                     bool(np.any(lim.lab_target >= 0) or np.any(np.isfinite(lim.lab_err))
                          or not lim.listed.all()))
     c = int(log_size or 0)
@@ -367,6 +370,25 @@ def _shell_faces(faces, face_labels, value):
     inside = face_labels[:, 0] == value
     outside = face_labels[:, 1] == value
     return np.concatenate([faces[inside], faces[outside][:, ::-1]])
+
+
+def stray_vertices(p: Prepared, out_v, out_f, out_fl, vertex_ids, labels, bound) -> np.ndarray:
+    """Input vertices to pin in a stricter run, (N,) bool: on each shell of ``labels`` (label
+    values; None: a plain mesh), the input vertices farther than half its ``bound`` (mm; one
+    number or {label: mm}) from the decimated shell, and the input vertices (``vertex_ids``) of
+    the output vertices farther than that from the input shell. Where the quadric cost let a
+    vertex slide along its planes (a thin tip pulled in), pinning holds the shape."""
+    from ..geometry.measure import point_to_surface
+
+    pins = np.zeros(len(p.v), bool)
+    for lab in labels:
+        a = p.f if lab is None else _shell_faces(p.f, p.fl, lab)
+        b = out_f if lab is None else _shell_faces(out_f, out_fl, lab)
+        limit = 0.5 * (bound.get(lab, np.inf) if isinstance(bound, dict) else bound)
+        ia, ib = np.unique(a), np.unique(b)
+        pins[ia[point_to_surface(p.v[ia], out_v, b) > limit]] = True
+        pins[vertex_ids[ib[point_to_surface(out_v[ib], p.v, a) > limit]]] = True
+    return pins
 
 
 def measure_shells(v0, f0, fl0, v1, f1, fl1, values=None) -> Dict:

@@ -46,7 +46,11 @@ point-to-triangle distances from the vertices and face centroids of each surface
 (:func:`anatomesh.core.geometry.measure.surface_distance`; after Cignoni, Rocchini & Scopigno
 1998, "Metro: measuring error on simplified surfaces") — and the labels whose shells exceed
 the bound are decimated again with their bound scaled down (by bound / measured, 0.125-0.5
-each time; up to 5 runs); ``info["error_bound_met"]`` tells whether it held.
+each time; up to 5 runs). A shell that still exceeds it after one stricter run (a rough shell
+whose vertices carry few planes: CT skin and bone under a large face budget) is then bounded
+on the whole quadric cost, which bounds the squared distance to every merged plane (Garland &
+Heckbert 1997) and is the conservative estimate; ``info["error_bound_met"]`` tells whether it
+held.
 
 The pieces shared with :mod:`.progressive` (input checks, budgets, the collapse driver,
 SurfaceSets in and out, measuring) are in :mod:`.engine`.
@@ -59,6 +63,7 @@ Example
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Dict, Optional, Tuple, Union
 
@@ -134,10 +139,12 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
     bound = value if cap is None else cap
     bounded = kind == "max_error" or cap is not None
     factor = np.ones(len(p.values))            # per dense label: scale of its error bound
+    whole = np.zeros(len(p.values), np.bool_)  # per dense label: bound on the whole cost
     for attempt in range(_ATTEMPTS if bounded else 1):
         lim = engine.limits(kind, value, p, factor)
         if cap is not None:
             lim = engine.error_bound(lim, cap, factor)
+        lim.whole = whole
         out, info = _attempt(p, lim, kind, value, progress, attempt, measure or bounded,
                              shell_values)
         if not bounded:
@@ -146,11 +153,33 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, *, face_labels: Optional[n
         info.update(error_bound_mm=bound, error_bound_met=not over, attempts=attempt + 1)
         if not over:
             break
-        for i, excess in over.items():         # redo: the shells over the bound, stricter
-            factor[i] *= min(0.5, max(0.125, 0.8 / excess))
+        if attempt > 0:                        # the stricter bound did not hold either: pin
+            p = _pinned(p, out, info, over, bound)
+        _stricter(over, factor, whole)
     info["seconds"] = time.perf_counter() - t0
     report(progress, 1.0, "decimated")
     return out + (info,)
+
+
+def _pinned(p, out, info, over, bound):
+    """``p`` with the input vertices the over-bound shells strayed from locked as well
+    (:func:`engine.stray_vertices`)."""
+    labels = [None] if not p.multi else sorted({int(p.values[i]) for i in over})
+    pins = engine.stray_vertices(p, out[0].astype(np.float64), out[1], out[2],
+                                 info["vertex_ids"], labels, bound)
+    return dataclasses.replace(p, lock=p.lock | pins)
+
+
+def _stricter(over, factor, whole):
+    """Redo the shells over their bound ({dense label: Hausdorff / bound}) more strictly: a
+    smaller bound on the error estimate first, then (when that did not hold either) the bound on
+    the whole quadric cost at full size, then smaller whole bounds. ``factor`` (K,) float64 and
+    ``whole`` (K,) bool change in place."""
+    for i, excess in over.items():
+        if factor[i] < 1.0 and not whole[i]:
+            whole[i], factor[i] = True, 1.0
+        else:
+            factor[i] *= min(0.5, max(0.125, 0.8 / excess))
 
 
 def _attempt(p, lim, kind, value, progress, attempt, measure, shell_values):

@@ -127,12 +127,12 @@ def test_isosurfaces_decimated_each_with_a_shared_face_budget(tmp_path):
                      target_faces=20000))
     assert res.surface_set.lattice is None and len(res.surfaces) == 2  # one set, a label per level
     rep = res.report
-    # 20000 faces would take the skin and bone further than the default cap of one voxel (3 mm):
-    # the run stops short, says so, and stays within the cap
+    # 20000 faces under the default cap of one voxel (3 mm): the cost estimate alone lets the
+    # skin's thin tips slide 4.3 mm; the stricter runs pin them, and the target is met within it
     dec = rep["decimation"]
-    assert dec["target"]["max_error_mm"] == 3.0 and dec["target_met"] is False and dec["error_bound_met"]
-    assert 20000 < dec["faces_after"] < 0.35 * dec["faces_before"] and dec["hausdorff_mm"] <= 3.0
-    assert any("short of its target" in w and "3.0 mm error cap" in w for w in rep["warnings"])
+    assert dec["target"]["max_error_mm"] == 3.0 and dec["target_met"] and dec["error_bound_met"]
+    assert dec["faces_after"] <= 20000 and 0 < dec["hausdorff_mm"] <= 3.0
+    assert not any("short of its target" in w for w in rep["warnings"])
     for s in rep["surfaces"]:
         assert s["closed"] and s["manifold"] and s["faces_before"] > s["faces"]
         assert s["decimation_max_error_mm"] > 0
