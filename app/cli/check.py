@@ -98,29 +98,13 @@ def summary_lines(rep: Dict) -> List[str]:
     prof = rep["profile"]
     lines = [f"profile {prof['name']}: min wall {prof['min_wall']} mm, min gap {prof['min_gap']} mm"]
     for p in rep["parts"]:
-        problems = []
-        if not p["closed"]:
-            problems.append("not closed")
-        if not p["manifold"]:
-            problems.append("not manifold")
-        if not p.get("oriented", True):
-            problems.append("inconsistent normals")
-        if p["self_intersections"]:
-            problems.append(f"{p['self_intersections']} self-intersecting faces")
-        if p.get("degenerate_faces"):
-            problems.append(f"{p['degenerate_faces']} degenerate faces")
-        if p.get("tiny_shells"):
-            problems.append(f"{len(p['tiny_shells'])} tiny shells")
-        if p.get("thin_regions"):
-            r = p["thin_regions"][0]
-            problems.append(f"thin: {p['thin_area_mm2']:.1f} mm² below {prof['min_wall']} mm "
-                            f"(thinnest {r['min_mm']} mm at {r['min_location']})")
-        if p.get("part_intersections"):
-            problems.append(f"crosses {p['part_intersections']} other part(s)")
         wall = "?" if p["min_wall_mm"] is None else f"{p['min_wall_mm']:.2f}"
         state = "ok  " if p["passed"] else "FAIL"
-        lines.append(f"{state} {p['name']} (min wall {wall} mm)" +
-                     (": " + "; ".join(problems) if problems else ""))
+        reasons = p.get("reasons", [])
+        lines.append(f"{state} {p['name']} (min wall {wall} mm)" + (": " + reasons[0] if reasons else ""))
+        lines += [f"       {r}" for r in reasons[1:4]]
+        if len(reasons) > 4:
+            lines.append(f"       ... {len(reasons) - 4} more in the report")
     for g in rep["gaps"]:
         if g.get("intersecting"):
             lines.append(f"FAIL {g['a']} and {g['b']} intersect at {g['location']}")

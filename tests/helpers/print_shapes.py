@@ -72,3 +72,20 @@ def body_with_fin_and_rod(sheet=0.5, rod=0.6, step=0.125):
         stick = capsule_sdf(p, (9, 5, 3), (22, 5, 3), rod / 2)
         return np.minimum(np.minimum(block, fin), stick)
     return sdf_mesh(sdf, (-1, -1, -1), (23.5, 11, 15), step)
+
+
+def standing_lens(rim_radius=10.0, half_angle_deg=40.0, step=0.1):
+    """:func:`lens` stood on its rim on a 2 mm base plate (so a slicer has a first layer): the
+    rim in the plane y = 0, the lens centred at (0, 0, rim_radius + 1), the base z = 0..2."""
+    a = np.radians(half_angle_deg)
+    big = rim_radius / np.sin(a)
+    off = big * np.cos(a)
+    centre = np.array([0.0, 0.0, rim_radius + 1.0])
+
+    def sdf(p):
+        q = p - centre
+        caps = np.maximum(np.linalg.norm(q - [0, -off, 0], axis=1), np.linalg.norm(q + [0, -off, 0], axis=1)) - big
+        return np.minimum(caps, box_sdf(p, (-4, -4, 0), (4, 4, 2)))
+
+    h = big - off + step
+    return sdf_mesh(sdf, (-rim_radius - 1, -h, -0.5), (rim_radius + 1, h, 2 * rim_radius + 2), step)
