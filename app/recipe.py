@@ -78,6 +78,8 @@ class Recipe:
     the minimum wall (``min_wall`` or the profile's) in the label map before extraction;
     ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
     so separately printed parts fit together (:mod:`anatomesh.core.printing.fixes`).
+    ``hollow`` (mm) — hollow every part to a shell of this wall with ``drain_holes`` holes of
+    ``drain_diameter`` mm (default: the profile's) at its lowest points (:mod:`anatomesh.core.printing.hollow`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
     ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
@@ -113,6 +115,10 @@ class Recipe:
     fuse: List[List[Union[int, str]]] = field(default_factory=list)
     thicken: bool = False
     clearance: Optional[float] = None
+    # printable-part tools (issue 18): hollow to this wall (mm) with drain holes
+    hollow: Optional[float] = None
+    drain_holes: int = 2
+    drain_diameter: Optional[float] = None
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
@@ -146,10 +152,13 @@ def check_recipe(recipe: Recipe) -> None:
         raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
     if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
         raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
-    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance"):
+    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance",
+                 "hollow", "drain_diameter"):
         value = getattr(recipe, name)
         if value is not None and not value > 0:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
+    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):  # issue 18
+        raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
 
@@ -164,7 +173,8 @@ SECTIONS: Dict[str, Dict[str, str]] = {
                   "staircase": "staircase"},
     "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
     "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
-              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance"},
+              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance",
+              "hollow_mm": "hollow", "drain_holes": "drain_holes", "drain_diameter_mm": "drain_diameter"},
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
@@ -176,7 +186,8 @@ _NOTES = {
                  "normal_median, none",
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
-             "(groups of labels), thicken, clearance_mm",
+             "(groups of labels), thicken, clearance_mm; tools: hollow_mm (wall), drain_holes, "
+             "drain_diameter_mm",
     "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
 }
 #: Recipe fields holding paths (resolved against the recipe's folder)
@@ -215,6 +226,9 @@ _TYPES = {
         isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups, e.g. [[\"liver\", \"spleen\"]]"),
     "thicken": (lambda v: isinstance(v, bool), "true or false"),
     "clearance": (lambda v: _is_number(v), _NUMBER),
+    "hollow": (lambda v: _is_number(v), _NUMBER),
+    "drain_holes": (lambda v: _is_int(v), "a whole number"),
+    "drain_diameter": (lambda v: _is_number(v), _NUMBER),
     "out_dir": (lambda v: isinstance(v, str), "a folder path"),
     "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
     "report": (lambda v: isinstance(v, str), "a file path"),
@@ -225,7 +239,7 @@ _TYPES = {
                     "[width, height] in pixels"),
 }
 _FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
-                 "max_error", "min_wall", "min_gap", "clearance"}
+                 "max_error", "min_wall", "min_gap", "clearance", "hollow", "drain_diameter"}
 
 
 def _is_int(v) -> bool:

@@ -18,7 +18,7 @@ from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing.checks import check_parts
-from . import outputs, stages
+from . import outputs, printtools, stages
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
@@ -74,6 +74,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                                                       clock.sub(0.7))
     res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
     res.fixes += [fix] if fix else []
+    res.surfaces, tools = printtools.apply_tools(res.surfaces, recipe, clock.sub(0.7))  # issue 18
+    res.fixes += tools
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
     outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))

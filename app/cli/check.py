@@ -21,6 +21,8 @@ from ...core.model.errors import AnatomeshError
 from ...core.printing.checks import check_parts
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
 from ..check import fix_parts, read_parts
+from ..printtools import hollow_part
+from .mesh import hollow_args
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
@@ -43,20 +45,21 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--separate", type=float, metavar="MM",
                    help="fix: pull touching parts apart by this clearance (each side of a shared "
                         "interface moves back by half); needs --out")
+    hollow_args(p)  # issue 18: print tools
     p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
-                                                "parts.3mf (with a fix option)")
+                                                "parts.3mf (with a fix or tool option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
     p.set_defaults(func=cmd_check)
     return p
 
 
 def cmd_check(args) -> int:
-    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate))
+    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow))
     if fixing and not args.out:
-        raise AnatomeshError("--remove-tiny/--close-holes/--separate write fixed files: add --out DIR")
+        raise AnatomeshError("--remove-tiny/--close-holes/--separate/--hollow write fixed files: add --out DIR")
     if args.out and not fixing:
-        raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES "
-                             "and/or --separate MM")
+        raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES, "
+                             "--separate MM and/or --hollow WALL_MM")
     prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     meshes = read_parts(args.path)
     fixes = []
@@ -86,11 +89,23 @@ def _write_fixed(meshes, args):
     combined = out / "parts.3mf"
     refuse_overwrite(plans + [combined], args.overwrite, "pass --overwrite or choose another --out folder")
     fixed, log = fix_parts(meshes, args.remove_tiny, args.close_holes, args.separate)
+    if args.hollow is not None:  # issue 18: print tools
+        for k, m in enumerate(fixed):
+            fixed[k], info = hollow_part(m, args.hollow, 2 if args.drain_holes is None else args.drain_holes,
+                                         args.drain_diameter, args.profile)
+            log[k]["summary"] = "; ".join(x for x in (log[k]["summary"].replace("nothing to fix", ""),
+                                                      _hollow_text(info)) if x)
+            log[k]["hollow"] = info
     for m, path, entry in zip(fixed, plans, log):
         write_stl(m, path)
         entry["file"] = str(path)
     write_3mf(fixed, combined, title="fixed parts")
     return fixed, log
+
+
+def _hollow_text(info: Dict) -> str:
+    return (f"hollowed to {info['wall_mm']:g} mm walls, {info['saved_mm3']:.0f} mm³ "
+            f"({info['saved_pct']:.0f} %) saved, {len(info['drain_holes'])} drain hole(s)")
 
 
 def summary_lines(rep: Dict) -> List[str]:

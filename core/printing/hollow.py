@@ -53,7 +53,8 @@ def hollow(mesh: Mesh, wall: float, holes: int = 2, hole_diameter: float = 4.0,
             done.append({"location": location(q), "diameter_mm": float(hole_diameter)})
     vv, ff, _, _ = compact(vv, ff)
     out = Mesh(vv.astype(np.float32), ff.astype(np.int32), None, name=mesh.name, value=mesh.value,
-               color=mesh.color, space=mesh.space, meta=dict(mesh.meta))
+               color=mesh.color, space=mesh.space,
+               meta={k: x for k, x in mesh.meta.items() if k != "vertex_ids"})  # indices changed
     after = signed_volume(out.vertices, out.faces)
     return out, {"wall_mm": float(wall), "volume_before_mm3": round(before, 3),
                  "volume_after_mm3": round(after, 3), "saved_mm3": round(before - after, 3),

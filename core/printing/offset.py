@@ -54,7 +54,7 @@ def inner_offset(vertices: np.ndarray, faces: np.ndarray, wall: float, spacing: 
     pts = _points(axes, idx, inside.shape)
     d, _, _ = g.closest(pts, max_distance=wall + 2 * h)
     field.ravel()[idx] = np.minimum(d, wall + 2 * h) - wall
-    field[np.abs(field) < 1e-6 * h] = -1e-6 * h  # no sample exactly on the level
+    field[np.abs(field) < 0.1 * h] = -0.1 * h  # no sample on or near the level (no slivers): walls 0.1 h thicker at most
     vo, fo = _march(field, axes)
     return vo, fo, h
 
