@@ -79,7 +79,9 @@ class Recipe:
     ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
     so separately printed parts fit together (:mod:`anatomesh.core.printing.fixes`).
     ``hollow`` (mm) — hollow every part to a shell of this wall with ``drain_holes`` holes of
-    ``drain_diameter`` mm (default: the profile's) at its lowest points (:mod:`anatomesh.core.printing.hollow`).
+    ``drain_diameter`` mm (default: the profile's) at its lowest points (:mod:`anatomesh.core.printing.hollow`);
+    ``connectors`` — pairs of touching labels (names/values) that get pins and pockets across
+    their interface, clearance from the profile (:mod:`anatomesh.core.printing.connectors`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     ``lod``: number of levels of detail written as ``<scan>_lod0.glb`` (the final surfaces) ..
     ``<scan>_lod{n-1}.glb`` (each level half the faces of the one before, or the coarsest that keeps
@@ -119,6 +121,7 @@ class Recipe:
     hollow: Optional[float] = None
     drain_holes: int = 2
     drain_diameter: Optional[float] = None
+    connectors: List[List[Union[int, str]]] = field(default_factory=list)
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
@@ -174,7 +177,8 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
     "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
               "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance",
-              "hollow_mm": "hollow", "drain_holes": "drain_holes", "drain_diameter_mm": "drain_diameter"},
+              "hollow_mm": "hollow", "drain_holes": "drain_holes", "drain_diameter_mm": "drain_diameter",
+              "connectors": "connectors"},
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
@@ -187,7 +191,7 @@ _NOTES = {
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
              "(groups of labels), thicken, clearance_mm; tools: hollow_mm (wall), drain_holes, "
-             "drain_diameter_mm",
+             "drain_diameter_mm, connectors (label pairs)",
     "output": "formats: stl, ply, obj, 3mf, glb, blend, png; lod: GLB levels of detail (0: none)",
 }
 #: Recipe fields holding paths (resolved against the recipe's folder)
@@ -229,6 +233,8 @@ _TYPES = {
     "hollow": (lambda v: _is_number(v), _NUMBER),
     "drain_holes": (lambda v: _is_int(v), "a whole number"),
     "drain_diameter": (lambda v: _is_number(v), _NUMBER),
+    "connectors": (lambda v: isinstance(v, list) and all(isinstance(g, list) and len(g) == 2 and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label pairs, e.g. [[\"liver\", \"stomach\"]]"),
     "out_dir": (lambda v: isinstance(v, str), "a folder path"),
     "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
     "report": (lambda v: isinstance(v, str), "a file path"),

@@ -98,6 +98,7 @@ def _print_args(m) -> None:
                    help="print fix: pull touching parts apart by MM along their shared interfaces, "
                         "so separately printed parts fit together")
     hollow_args(m)
+    connector_args(m)
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
@@ -115,6 +116,20 @@ def hollow_args(m) -> None:
                    help="drain hole diameter (default: the profile's, fdm 4 mm, resin 3 mm)")
 
 
+def connector_args(m) -> None:
+    """``--connectors A,B`` (repeat)."""
+    m.add_argument("--connectors", action="append", metavar="A,B",
+                   help="print tool: pins on part A and matching pockets in part B across their shared "
+                        "interface (names or values; clearance from the profile); repeat for more pairs")
+
+
+def _pair(text: str):
+    parts = split_list(text)
+    if len(parts) != 2:
+        raise AnatomeshError(f"--connectors takes two parts, A,B; got {text!r}")
+    return parts
+
+
 def recipe_from_args(args) -> Recipe:
     """The Recipe of a ``mesh`` command line: the recipe file (if any), then every flag given."""
     recipe = load_recipe(args.recipe) if args.recipe else Recipe(out_dir="")
@@ -130,6 +145,8 @@ def recipe_from_args(args) -> Recipe:
         recipe.formats = _formats(args.format)
     if args.fuse:
         recipe.fuse = [split_list(g) for g in args.fuse]
+    if args.connectors:  # issue 18
+        recipe.connectors = [_pair(g) for g in args.connectors]
     targets = ("decimate", "target_faces", "max_error")
     if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
         for t in targets:
