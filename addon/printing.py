@@ -9,6 +9,8 @@ from typing import Dict, List
 
 #: how close a framed problem is shown (view distance, mm)
 FRAME_DISTANCE_MM = 60.0
+#: the list's wording of the kinds of thin features (core.printing.features)
+THIN_KINDS = {"sheet": "thin sheet", "rod": "thin rod", "edge": "sharp edge"}
 
 
 def print_objects(context, selected_only: bool) -> list:
@@ -34,9 +36,10 @@ def problems_of(report: Dict) -> List[Dict]:
             rows.append(dict(part=name, kind="tiny shell", value=float(s["volume_mm3"]), unit="mm³",
                              location=s["location"]))
         for r in p.get("thin_regions", []):
-            kind = "thin wall (at a seam)" if r.get("seam_backed") else "thin wall"
-            rows.append(dict(part=name, kind=kind, value=float(r["min_mm"]), unit="mm",
-                             location=r["min_location"]))
+            kind = THIN_KINDS.get(r.get("kind"), "thin wall")
+            kind += " (at a seam)" if r.get("seam_backed") else ""
+            rows.append(dict(part=name, kind=kind, value=float(r.get("thickness_mm", r["min_mm"])),
+                             unit="mm", location=r["location"]))
     for c in report.get("intersections", []):
         rows.append(dict(part=c["a"], other=c["b"], kind="parts cross", value=float(c["faces_a"]),
                          unit="faces", location=c["location"]))

@@ -85,6 +85,10 @@ class Recipe:
     the minimum wall (``min_wall`` or the profile's) in the label map before extraction;
     ``clearance`` (mm) — pull touching parts apart along their shared interfaces after decimation,
     so separately printed parts fit together (:mod:`anatomesh.core.printing.fixes`).
+    ``hollow`` (mm) — hollow every part to a shell of this wall with ``drain_holes`` holes of
+    ``drain_diameter`` mm (default: the profile's) at its lowest points (:mod:`anatomesh.core.printing.hollow`);
+    ``connectors`` — pairs of touching labels (names/values) that get pins and pockets across
+    their interface, clearance from the profile (:mod:`anatomesh.core.printing.connectors`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     ``grid``: the grid structures of a mask folder are meshed on (a mask name or "image"; default the
     finest), or for DICOM SEG/RTSTRUCT "image" (the referenced series) or "native" (the object's own
@@ -130,6 +134,11 @@ class Recipe:
     fuse: List[List[Union[int, str]]] = field(default_factory=list)
     thicken: bool = False
     clearance: Optional[float] = None
+    # printable-part tools (issue 18): hollow to this wall (mm) with drain holes
+    hollow: Optional[float] = None
+    drain_holes: int = 2
+    drain_diameter: Optional[float] = None
+    connectors: List[List[Union[int, str]]] = field(default_factory=list)
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
@@ -170,10 +179,13 @@ def check_recipe(recipe: Recipe) -> None:
         raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
     if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
         raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
-    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance"):
+    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance",
+                 "hollow", "drain_diameter"):
         value = getattr(recipe, name)
         if value is not None and not value > 0:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
+    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):  # issue 18
+        raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
     # distance colouring and the web page (issue 16)
@@ -194,7 +206,9 @@ SECTIONS: Dict[str, Dict[str, str]] = {
                   "staircase": "staircase"},
     "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
     "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
-              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance"},
+              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance",
+              "hollow_mm": "hollow", "drain_holes": "drain_holes", "drain_diameter_mm": "drain_diameter",
+              "connectors": "connectors"},
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
@@ -210,7 +224,8 @@ _NOTES = {
                  "normal_median, none",
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
-             "(groups of labels), thicken, clearance_mm",
+             "(groups of labels), thicken, clearance_mm; tools: hollow_mm (wall), drain_holes, "
+             "drain_diameter_mm, connectors (label pairs)",
     "output": "formats: stl, ply, obj, 3mf, dicom, glb, blend, png, web; lod: GLB levels of detail (0: none)",
     "distance": "colour every surface by its distance (mm) to the structure `to` (name or value): "
                 "within margins_mm red, yellow, green",
@@ -254,6 +269,11 @@ _TYPES = {
         isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups, e.g. [[\"liver\", \"spleen\"]]"),
     "thicken": (lambda v: isinstance(v, bool), "true or false"),
     "clearance": (lambda v: _is_number(v), _NUMBER),
+    "hollow": (lambda v: _is_number(v), _NUMBER),
+    "drain_holes": (lambda v: _is_int(v), "a whole number"),
+    "drain_diameter": (lambda v: _is_number(v), _NUMBER),
+    "connectors": (lambda v: isinstance(v, list) and all(isinstance(g, list) and len(g) == 2 and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label pairs, e.g. [[\"liver\", \"stomach\"]]"),
     "out_dir": (lambda v: isinstance(v, str), "a folder path"),
     "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
     "report": (lambda v: isinstance(v, str), "a file path"),
@@ -269,7 +289,7 @@ _TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x i
                      "a list of distances in mm, e.g. [2, 5, 10]")
 _TYPES["web_levels"] = (lambda v: _is_int(v), "a whole number (1..4)")
 _FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
-                 "max_error", "min_wall", "min_gap", "clearance"}
+                 "max_error", "min_wall", "min_gap", "clearance", "hollow", "drain_diameter"}
 
 
 def _is_int(v) -> bool:

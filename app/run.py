@@ -19,7 +19,7 @@ from ..core.model.segmentation import Segmentation, stack_surface_sets
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing.checks import check_parts
-from . import outputs, stages
+from . import outputs, printtools, stages
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
@@ -69,6 +69,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                   progress=clock.sub(0.2))
     res = Result(volume, recipe)
     raw_warnings = _layered_surfaces(volume, recipe, clock, res)
+    res.surfaces, tools = printtools.apply_tools(res.surfaces, recipe, clock.sub(0.7))  # issue 18
+    res.fixes += tools
     res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)

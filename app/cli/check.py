@@ -21,6 +21,8 @@ from ...core.model.errors import AnatomeshError
 from ...core.printing.checks import check_parts
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
 from ..check import fix_parts, read_parts
+from ..printtools import hollow_part
+from .mesh import hollow_args
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
@@ -43,20 +45,21 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--separate", type=float, metavar="MM",
                    help="fix: pull touching parts apart by this clearance (each side of a shared "
                         "interface moves back by half); needs --out")
+    hollow_args(p)  # issue 18: print tools
     p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
-                                                "parts.3mf (with a fix option)")
+                                                "parts.3mf (with a fix or tool option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
     p.set_defaults(func=cmd_check)
     return p
 
 
 def cmd_check(args) -> int:
-    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate))
+    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow))
     if fixing and not args.out:
-        raise AnatomeshError("--remove-tiny/--close-holes/--separate write fixed files: add --out DIR")
+        raise AnatomeshError("--remove-tiny/--close-holes/--separate/--hollow write fixed files: add --out DIR")
     if args.out and not fixing:
-        raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES "
-                             "and/or --separate MM")
+        raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES, "
+                             "--separate MM and/or --hollow WALL_MM")
     prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     meshes = read_parts(args.path)
     fixes = []
@@ -86,6 +89,13 @@ def _write_fixed(meshes, args):
     combined = out / "parts.3mf"
     refuse_overwrite(plans + [combined], args.overwrite, "pass --overwrite or choose another --out folder")
     fixed, log = fix_parts(meshes, args.remove_tiny, args.close_holes, args.separate)
+    if args.hollow is not None:  # issue 18: print tools
+        for k, m in enumerate(fixed):
+            fixed[k], info = hollow_part(m, args.hollow, 2 if args.drain_holes is None else args.drain_holes,
+                                         args.drain_diameter, args.profile)
+            log[k]["summary"] = "; ".join(x for x in (log[k]["summary"].replace("nothing to fix", ""),
+                                                      _hollow_text(info)) if x)
+            log[k]["hollow"] = info
     for m, path, entry in zip(fixed, plans, log):
         write_stl(m, path)
         entry["file"] = str(path)
@@ -93,34 +103,23 @@ def _write_fixed(meshes, args):
     return fixed, log
 
 
+def _hollow_text(info: Dict) -> str:
+    return (f"hollowed to {info['wall_mm']:g} mm walls, {info['saved_mm3']:.0f} mm³ "
+            f"({info['saved_pct']:.0f} %) saved, {len(info['drain_holes'])} drain hole(s)")
+
+
 def summary_lines(rep: Dict) -> List[str]:
     """A short human summary of a :func:`check_parts` report, one problem per line."""
     prof = rep["profile"]
     lines = [f"profile {prof['name']}: min wall {prof['min_wall']} mm, min gap {prof['min_gap']} mm"]
     for p in rep["parts"]:
-        problems = []
-        if not p["closed"]:
-            problems.append("not closed")
-        if not p["manifold"]:
-            problems.append("not manifold")
-        if not p.get("oriented", True):
-            problems.append("inconsistent normals")
-        if p["self_intersections"]:
-            problems.append(f"{p['self_intersections']} self-intersecting faces")
-        if p.get("degenerate_faces"):
-            problems.append(f"{p['degenerate_faces']} degenerate faces")
-        if p.get("tiny_shells"):
-            problems.append(f"{len(p['tiny_shells'])} tiny shells")
-        if p.get("thin_regions"):
-            r = p["thin_regions"][0]
-            problems.append(f"thin: {p['thin_area_mm2']:.1f} mm² below {prof['min_wall']} mm "
-                            f"(thinnest {r['min_mm']} mm at {r['min_location']})")
-        if p.get("part_intersections"):
-            problems.append(f"crosses {p['part_intersections']} other part(s)")
         wall = "?" if p["min_wall_mm"] is None else f"{p['min_wall_mm']:.2f}"
         state = "ok  " if p["passed"] else "FAIL"
-        lines.append(f"{state} {p['name']} (min wall {wall} mm)" +
-                     (": " + "; ".join(problems) if problems else ""))
+        reasons = p.get("reasons", [])
+        lines.append(f"{state} {p['name']} (min wall {wall} mm)" + (": " + reasons[0] if reasons else ""))
+        lines += [f"       {r}" for r in reasons[1:4]]
+        if len(reasons) > 4:
+            lines.append(f"       ... {len(reasons) - 4} more in the report")
     for g in rep["gaps"]:
         if g.get("intersecting"):
             lines.append(f"FAIL {g['a']} and {g['b']} intersect at {g['location']}")

@@ -21,7 +21,7 @@ RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_l
                 "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
                 "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
                 "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance",
-                "grid", "contours")
+                "grid", "contours", "hollow", "drain_holes", "drain_diameter")
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -104,11 +104,37 @@ def _print_args(m) -> None:
     m.add_argument("--clearance", type=float, metavar="MM",
                    help="print fix: pull touching parts apart by MM along their shared interfaces, "
                         "so separately printed parts fit together")
+    hollow_args(m)
+    connector_args(m)
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
     m.add_argument("--min-wall", type=float, metavar="MM", help="thinnest printable wall (overrides the profile)")
     m.add_argument("--min-gap", type=float, metavar="MM", help="narrowest gap that stays open (overrides the profile)")
+
+
+def hollow_args(m) -> None:
+    """``--hollow WALL_MM [--drain-holes N] [--drain-diameter MM]`` (mesh and check)."""
+    m.add_argument("--hollow", type=float, metavar="WALL_MM",
+                   help="print tool (resin/powder): hollow every part to a shell of this wall, with "
+                        "drain holes at its lowest points (+z of the patient is up)")
+    m.add_argument("--drain-holes", type=int, metavar="N", help="drain holes per cavity (default 2)")
+    m.add_argument("--drain-diameter", type=float, metavar="MM",
+                   help="drain hole diameter (default: the profile's, fdm 4 mm, resin 3 mm)")
+
+
+def connector_args(m) -> None:
+    """``--connectors A,B`` (repeat)."""
+    m.add_argument("--connectors", action="append", metavar="A,B",
+                   help="print tool: pins on part A and matching pockets in part B across their shared "
+                        "interface (names or values; clearance from the profile); repeat for more pairs")
+
+
+def _pair(text: str):
+    parts = split_list(text)
+    if len(parts) != 2:
+        raise AnatomeshError(f"--connectors takes two parts, A,B; got {text!r}")
+    return parts
 
 
 def recipe_from_args(args) -> Recipe:
@@ -126,6 +152,8 @@ def recipe_from_args(args) -> Recipe:
         recipe.formats = _formats(args.format)
     if args.fuse:
         recipe.fuse = [split_list(g) for g in args.fuse]
+    if args.connectors:  # issue 18
+        recipe.connectors = [_pair(g) for g in args.connectors]
     targets = ("decimate", "target_faces", "max_error")
     if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
         for t in targets:

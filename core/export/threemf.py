@@ -8,7 +8,10 @@ Specification* 1.3, 2022). :func:`write_3mf` writes core-spec only, no extension
   ``anatomesh:space`` (``RAS``/``LPS``, the space the vertices are in) — vendor metadata needs a
   namespace prefix declared on ``<model>`` (spec §3.4.1), here ``xmlns:anatomesh`` = :data:`NS_ANATOMESH`;
 * one ``<basematerials>`` group, one ``<base name=… displaycolor="#RRGGBB[AA]">`` per surface
-  (``Mesh.color`` 0..1 taken as sRGB, as the label tables give it);
+  (``Mesh.color`` 0..1 taken as sRGB, as the label tables give it), and the same colours as a
+  ``<m:colorgroup>`` (materials extension, not required: readers without it ignore it);
+* the slicers' metadata parts that give each part its own filament in PrusaSlicer, Bambu
+  Studio and OrcaSlicer (:mod:`.threemf_slicers`);
 * one ``<object type="model" name=…>`` per surface referencing its material (``pid``/``pindex``),
   with the label value in the object's ``<metadatagroup>`` (``anatomesh:value``);
 * one ``<build><item objectid=…/>`` per object, no transform: vertices are already in mm in the
@@ -32,6 +35,8 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from .common import atomic_write, check_meshes
+from .threemf_slicers import (BAMBU_CONFIG, NS_MATERIAL, PRUSA_CONFIG, bambu_model_settings,
+                              filament_numbers, prusa_model_config, xml_text)
 from ..model.labels import rgba
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
@@ -52,20 +57,27 @@ _CONTENT_TYPES = (
     '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
     '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
     '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/>'
+    '<Default Extension="config" ContentType="application/xml"/>'
     '</Types>\n')
+#: resource ids: the base materials, the colour group, then one object per part
+_COLOR_GROUP, _FIRST_OBJECT = 2, 3
 _RELS = (
     '<?xml version="1.0" encoding="UTF-8"?>\n'
     '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
     f'<Relationship Target="/{MODEL_PART}" Id="rel0" Type="{REL_MODEL}"/>'
     '</Relationships>\n')
-_XML_BAD = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f]")
 
 
 # ---------------------------------------------------------------------------------------------
 # writing
 # ---------------------------------------------------------------------------------------------
-def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
+def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "",
+              filaments: Optional[Sequence[int]] = None) -> Path:
     """Write all ``meshes`` into one 3MF package (one object per surface); returns the path.
+
+    Every part gets its own filament in PrusaSlicer, Bambu Studio and OrcaSlicer (their
+    metadata parts, :mod:`.threemf_slicers`): ``filaments`` (1-based, one per mesh) or by
+    default one per distinct colour.
 
     Parameters
     ----------
@@ -76,6 +88,8 @@ def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         Output file (``.3mf``); written to ``path + '.part'`` and renamed when complete.
     title : str
         The package's ``Title`` metadata (default: the file name's stem).
+    filaments : sequence of int, optional
+        The filament (extruder) number of each mesh, from 1.
 
     Raises
     ------
@@ -92,6 +106,12 @@ def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
         if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])):
             raise AnatomeshError(f"surface {m.name!r} has triangles with a repeated vertex, which "
                                  f"3MF forbids; clean the mesh (drop degenerate faces) first", path)
+    colours = [_hex_color(m.color)[:7] for m in meshes]
+    fil = list(filaments) if filaments is not None else filament_numbers(meshes, colours)
+    if len(fil) != len(meshes) or any(int(x) < 1 for x in fil):
+        raise AnatomeshError(f"give one filament number (1, 2, ...) per part: {len(meshes)} parts, "
+                             f"filaments {fil}", path)
+    ids = [k + _FIRST_OBJECT for k in range(len(meshes))]
     big = sum(55 * m.n_vertices + 50 * m.n_faces for m in meshes) > 2 ** 31 - 2 ** 26
     with atomic_write(path) as fh:
         with zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED, compresslevel=COMPRESSLEVEL) as zf:
@@ -100,11 +120,13 @@ def write_3mf(meshes: Sequence[Mesh], path, *, title: str = "") -> Path:
             with zf.open(MODEL_PART, "w", force_zip64=big) as out:
                 for chunk in _model_xml(meshes, title or path.stem):
                     out.write(chunk if isinstance(chunk, bytes) else chunk.encode("utf-8"))
+            zf.writestr(PRUSA_CONFIG, prusa_model_config(meshes, ids, fil))
+            zf.writestr(BAMBU_CONFIG, bambu_model_settings(meshes, ids, fil))
     return path
 
 
 def _text(s) -> str:
-    return _XML_BAD.sub("", str(s))
+    return xml_text(s)
 
 
 def _hex_color(color) -> str:
@@ -116,7 +138,7 @@ def _model_xml(meshes: List[Mesh], title: str):
     """The model part as a sequence of chunks (str for markup, bytes for the number rows)."""
     space = meshes[0].space
     yield ('<?xml version="1.0" encoding="UTF-8"?>\n'
-           f'<model unit="millimeter" xml:lang="en-US" xmlns="{NS_CORE}" '
+           f'<model unit="millimeter" xml:lang="en-US" xmlns="{NS_CORE}" xmlns:m="{NS_MATERIAL}" '
            f'xmlns:anatomesh="{NS_ANATOMESH}">\n'
            f' <metadata name="Title">{escape(_text(title))}</metadata>\n'
            ' <metadata name="Application">Anatomesh</metadata>\n'
@@ -125,10 +147,13 @@ def _model_xml(meshes: List[Mesh], title: str):
     for m in meshes:
         name = quoteattr(_text(m.name or "surface"))
         yield f'   <base name={name} displaycolor="{_hex_color(m.color)}"/>\n'
-    yield "  </basematerials>\n"
+    yield f'  </basematerials>\n  <m:colorgroup id="{_COLOR_GROUP}">\n'
+    for m in meshes:
+        yield f'   <m:color color="{_hex_color(m.color)}"/>\n'
+    yield "  </m:colorgroup>\n"
     for k, m in enumerate(meshes):
-        yield (f'  <object id="{k + 2}" type="model" name={quoteattr(_text(m.name or "surface"))} '
-               f'pid="1" pindex="{k}">\n')
+        yield (f'  <object id="{k + _FIRST_OBJECT}" type="model" '
+               f'name={quoteattr(_text(m.name or "surface"))} pid="1" pindex="{k}">\n')
         if m.value is not None:
             yield ('   <metadatagroup><metadata name="anatomesh:value">'
                    f'{escape(_text(m.value))}</metadata></metadatagroup>\n')
@@ -139,7 +164,7 @@ def _model_xml(meshes: List[Mesh], title: str):
         yield "    </triangles>\n   </mesh>\n  </object>\n"
     yield " </resources>\n <build>\n"
     for k in range(len(meshes)):
-        yield f'  <item objectid="{k + 2}"/>\n'
+        yield f'  <item objectid="{k + _FIRST_OBJECT}"/>\n'
     yield " </build>\n</model>\n"
 
 

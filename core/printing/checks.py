@@ -34,7 +34,8 @@ from .gaps import part_gaps
 from .profiles import DEGENERATE_AREA_MM2, GAP_REPORT_MM, resolve_profile
 from .seams import seam_neighbourhoods
 from .solid import sliver_faces, split_crossings, tiny_shells
-from .thickness import robust_min_wall, thin_regions, wall_thickness
+from .features import thin_features
+from .thickness import wall_thickness
 
 #: at most this many thin regions are listed per part
 _MAX_REGIONS = 50
@@ -99,25 +100,32 @@ def check_parts(meshes: Sequence[Mesh], profile="fdm", min_wall: Optional[float]
 def _check_part(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
     """Checks of one part (the per-part entry of the report).
 
-    Thin regions lying wholly on or next to a seam with another part (``near_seam``) — the
-    creases where smoothed neighbours meet — are backed by that neighbour when the parts print
-    together: they are listed with ``seam_backed`` but do not fail the part (separate the parts,
-    e.g. ``--clearance``, and they count)."""
+    Thin regions are judged by :func:`.features.thin_features`: a rim that reaches no farther
+    than the profile's ``min_feature`` beyond the part's full-thickness body passes (counted
+    under ``rims``); sheets, rods and sharp edges fail with a reason. Failing regions lying
+    wholly on or next to a seam with another part (``near_seam``) — the creases where smoothed
+    neighbours meet — are backed by that neighbour when the parts print together: they are
+    listed with ``seam_backed`` but do not fail the part (separate the parts, e.g.
+    ``--clearance``, and they count)."""
     if f.shape[0] == 0:
         return {"name": name, "closed": False, "manifold": True, "oriented": True, "faces": 0,
                 "self_intersections": 0, "degenerate_faces": 0, "sliver_faces": 0,
                 "tiny_shells": [], "min_wall_mm": None, "thin_area_mm2": 0.0, "thin_regions": [],
-                "part_intersections": 0, "passed": False}
+                "thin_region_count": 0, "reasons": ["no faces"], "part_intersections": 0,
+                "passed": False}
     topo = topology(v, f)
     deg = degenerate_faces(v, f, DEGENERATE_AREA_MM2)
     sliv, _ = sliver_faces(v, f)
     shells = tiny_shells(v, f, prof["min_shell_mm3"])
-    thick = wall_thickness(v, f, grid=grid, max_thickness=max(_THICK_CAP_MM, 5 * prof["min_wall"]),
-                           oriented=bool(topo.closed and topo.manifold and topo.oriented))
-    regions = thin_regions(v, f, thick, prof["min_wall"])
+    thick, det = wall_thickness(v, f, grid=grid, max_thickness=max(_THICK_CAP_MM, 5 * prof["min_wall"]),
+                                oriented=bool(topo.closed and topo.manifold and topo.oriented),
+                                return_details=True)
+    regions = thin_features(v, f, thick, det, prof["min_wall"], prof["min_feature"], grid=grid)
     for r in regions:
-        r["seam_backed"] = bool(near_seam is not None and near_seam[r["vertices"]].all())
-    free = [r for r in regions if not r["seam_backed"]]
+        r["seam_backed"] = bool(r["fails"] and near_seam is not None and near_seam[r["vertices"]].all())
+    free = [r for r in regions if r["fails"] and not r["seam_backed"]]
+    backed = [r for r in regions if r["seam_backed"]]
+    rims = [r for r in regions if not r["fails"]]
     n_self = int(np.unique(self_pairs.ravel()).size)
     entry = {
         "name": name, "faces": int(f.shape[0]), "closed": bool(topo.closed),
@@ -127,20 +135,55 @@ def _check_part(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
         "sliver_faces": int(sliv.size),
         "tiny_shells": [{"volume_mm3": round(s["volume_mm3"], 4), "faces": int(s["faces"].size),
                          "location": s["location"]} for s in shells],
-        "min_wall_mm": _round(robust_min_wall(thick, free, prof["min_wall"])),
+        "min_wall_mm": _round(_min_wall(thick, rims + backed)),
         "thin_area_mm2": round(float(sum(r["area_mm2"] for r in free)), 3),
-        "seam_backed_thin_area_mm2": round(float(sum(r["area_mm2"] for r in regions if r["seam_backed"])), 3),
-        "thin_regions": [{"location": r["location"], "area_mm2": round(r["area_mm2"], 3),
-                          "min_mm": round(r["min_mm"], 3), "median_mm": round(r["median_mm"], 3),
-                          "min_location": r["min_location"], "vertices": int(r["vertices"].size),
-                          "seam_backed": r["seam_backed"]}
-                         for r in (free + [r for r in regions if r["seam_backed"]])[:_MAX_REGIONS]],
+        "seam_backed_thin_area_mm2": round(float(sum(r["area_mm2"] for r in backed)), 3),
+        "thin_regions": [_region_entry(r) for r in (free + backed)[:_MAX_REGIONS]],
         "thin_region_count": len(free),
+        "rims": {"count": len(rims), "area_mm2": round(float(sum(r["area_mm2"] for r in rims)), 3),
+                 "min_mm": _round(min((r["min_mm"] for r in rims), default=None))},
         "part_intersections": 0,
     }
-    entry["passed"] = bool(topo.closed and topo.manifold and topo.oriented and n_self == 0
-                           and deg.size == 0 and not shells and not free)
+    entry["reasons"] = _reasons(entry, topo, free, prof)
+    entry["passed"] = not entry["reasons"]
     return entry
+
+
+def _min_wall(thick: np.ndarray, passing: List[Dict]) -> Optional[float]:
+    """The thinnest wall outside the regions that pass (rims, seam-backed creases), mm."""
+    t = np.asarray(thick, np.float64).copy()
+    for r in passing:
+        t[r["vertices"]] = np.nan
+    return float(np.nanmin(t)) if np.any(np.isfinite(t)) else None
+
+
+def _region_entry(r: Dict) -> Dict:
+    """A thin region as listed in the report (JSON-ready)."""
+    out = {"kind": r["kind"], "reason": r["reason"], "thickness_mm": round(float(r["thickness_mm"]), 3),
+           **{k: round(float(x), 3) for k, x in r["extent"].items()},
+           "location": r["location"], "area_mm2": round(r["area_mm2"], 3),
+           "reach_area_mm2": round(r["reach_area_mm2"], 3), "min_mm": round(r["min_mm"], 3),
+           "median_mm": round(r["median_mm"], 3), "min_location": r["min_location"],
+           "vertices": int(r["vertices"].size), "seam_backed": r["seam_backed"]}
+    return out
+
+
+def _reasons(entry: Dict, topo, free: List[Dict], prof: Dict) -> List[str]:
+    """Why a part fails, one line each (empty: it passes)."""
+    out = []
+    if not (topo.closed and topo.manifold and topo.oriented):
+        what = [w for w, ok in (("open", topo.closed), ("not manifold", topo.manifold),
+                                ("inconsistently oriented", topo.oriented)) if not ok]
+        out.append("not a solid: " + ", ".join(what))
+    if entry["self_intersections"]:
+        out.append(f"{entry['self_intersections']} faces cross the part's own surface")
+    if entry["degenerate_faces"]:
+        out.append(f"{entry['degenerate_faces']} degenerate (zero-area) faces")
+    for s in entry["tiny_shells"]:
+        out.append(f"loose shell of {s['volume_mm3']:.2f} mm³ (< {prof['min_shell_mm3']:g} mm³) at "
+                   f"({', '.join(f'{x:.0f}' for x in s['location'])})")
+    out += [r["reason"] for r in free]
+    return out
 
 
 def _add_crossings(cross: List[Dict], out_parts: List[Dict], gaps: List[Dict]) -> List[Dict]:
@@ -154,6 +197,8 @@ def _add_crossings(cross: List[Dict], out_parts: List[Dict], gaps: List[Dict]) -
         out_parts[c["ia"]]["part_intersections"] += 1
         out_parts[c["ib"]]["part_intersections"] += 1
         out_parts[c["ia"]]["passed"] = out_parts[c["ib"]]["passed"] = False
+        for i, j in ((c["ia"], c["ib"]), (c["ib"], c["ia"])):
+            out_parts[i]["reasons"].append(f"crosses {out_parts[j]['name']} at {c['location']}")
     known = {(g["ia"], g["ib"]) for g in gaps}
     for c in cross:  # crossing parts are at gap 0 even if the gap search saw nothing
         if (c["ia"], c["ib"]) not in known:

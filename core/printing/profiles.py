@@ -13,10 +13,17 @@ import numpy as np
 
 from ..model.errors import AnatomeshError
 
-#: printer profiles: minimum printable wall and minimum gap that stays open, mm
+#: printer profiles, mm: the thinnest wall printed (``min_wall``), the narrowest gap between parts
+#: that stays open (``min_gap``), the smallest loose shell worth printing (``min_shell_mm3``), the
+#: smallest detail (``min_feature``: the nozzle, or a few pixels of a resin printer) — thinner
+#: material reaching less than this beyond the part's full-thickness body is a rim, not a thin
+#: spot (:mod:`.features`) — and the hole sizes and fits of the printable-part tools (drain
+#: holes, connector clearance)
 PROFILES: Dict[str, Dict[str, float]] = {
-    "fdm": {"min_wall": 0.8, "min_gap": 0.5, "min_shell_mm3": 1.0},
-    "resin": {"min_wall": 0.4, "min_gap": 0.2, "min_shell_mm3": 0.1},
+    "fdm": {"min_wall": 0.8, "min_gap": 0.5, "min_shell_mm3": 1.0, "min_feature": 0.4,
+            "drain_diameter": 4.0, "connector_clearance": 0.2},
+    "resin": {"min_wall": 0.4, "min_gap": 0.2, "min_shell_mm3": 0.1, "min_feature": 0.1,
+              "drain_diameter": 3.0, "connector_clearance": 0.1},
 }
 #: pairs of parts closer than this are listed in the report, mm
 GAP_REPORT_MM = 5.0

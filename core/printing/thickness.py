@@ -118,14 +118,17 @@ def face_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
     vertex normal at a crease or a staircase step is an average that sends rays across corners.
     ``max_thickness`` (mm) bounds the rays and the ball search (its cost grows with the cube of
     the radius): thicker walls come out as ``max_thickness``. With ``return_details`` also returns
-    ``{"ray", "ball" (M,) mm, "decided" (M,) bool}`` (decided False: parity could not tell the
-    inside, e.g. on an open surface).
+    ``{"ray", "ball" (M,) mm, "decided" (M,) bool, "centre" (M, 3) mm, "inscribed" (M,) bool,
+    "inward" (M, 3)}``: decided False where parity could not tell the inside (e.g. on an open
+    surface); the inscribed ball's centre and whether it is a valid (empty) one; the unit inward
+    direction (zero for zero-area faces).
     """
     v, f = check_arrays(vertices, faces)
     m = f.shape[0]
     out = np.full(m, np.nan)
     details = {"ray": np.full(m, np.nan), "ball": np.full(m, np.nan), "decided": np.zeros(m, bool),
-               "centre": np.full((m, 3), np.nan), "inscribed": np.zeros(m, bool)}
+               "centre": np.full((m, 3), np.nan), "inscribed": np.zeros(m, bool),
+               "inward": np.zeros((m, 3))}
     if m == 0:
         return (out, details) if return_details else out
     g = grid if grid is not None else TriangleGrid(v, f)
@@ -161,6 +164,7 @@ def face_thickness(vertices: np.ndarray, faces: np.ndarray, grid: Optional[Trian
         details["decided"][idx] = decided
         details["centre"][idx] = cen[idx] + r[:, None] * dirs
         details["inscribed"][idx] = empty & sensible
+        details["inward"][idx] = dirs
         return out, details
     return out
 
@@ -212,8 +216,9 @@ def _point_cell(v, f) -> float:
 
 def thin_regions(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndarray,
                  min_wall: float, min_area_mm2: Optional[float] = None,
-                 min_vertices: int = 3) -> List[Dict]:
-    """Connected regions of vertices thinner than ``min_wall`` mm (linked by mesh edges).
+                 min_vertices: int = 3, links: Optional[np.ndarray] = None) -> List[Dict]:
+    """Connected regions of vertices thinner than ``min_wall`` mm (linked by mesh edges, and by
+    ``links`` (K, 2) vertex pairs if given: e.g. the two sides of a sheet).
 
     Regions smaller than ``min_area_mm2`` (default ``min_wall²``: less than one printed line by
     one printed line) or of fewer than ``min_vertices`` vertices are isolated spots — a sharp
@@ -232,6 +237,8 @@ def thin_regions(vertices: np.ndarray, faces: np.ndarray, thickness: np.ndarray,
     if not np.any(thin) or f.shape[0] == 0:
         return []
     e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]).astype(np.int64)
+    if links is not None and len(links):
+        e = np.concatenate([e, np.asarray(links, np.int64).reshape(-1, 2)])
     e = e[thin[e[:, 0]] & thin[e[:, 1]]]
     roots = union_find_roots(np.ascontiguousarray(e[:, 0]), np.ascontiguousarray(e[:, 1]), len(v))
     area = vertex_areas(v, f)

@@ -44,8 +44,8 @@ def test_check_lists_thin_plate_and_close_blocks_with_values_and_places(phantoms
     assert bpy.ops.anatomesh.print_check() == {"FINISHED"}
     assert s.checked and not s.passed
     rows = [(p.part, p.other, p.kind, p.value, tuple(p.location)) for p in s.problems]
-    thin = [r for r in rows if r[2] == "thin wall"]
-    assert {r[0] for r in thin} == {"plate"}  # its top and bottom sides
+    thin = [r for r in rows if r[2] == "thin sheet"]
+    assert {r[0] for r in thin} == {"plate"} and len(thin) == 1  # top and bottom: one sheet
     assert min(r[3] for r in thin) == pytest.approx(0.5, abs=0.15)
     assert 0 <= thin[0][4][0] <= 12 and 0 <= thin[0][4][1] <= 10 and 0 <= thin[0][4][2] <= 0.5
     gaps = [r for r in rows if r[2] == "gap below minimum"]

@@ -342,9 +342,10 @@ def test_thin_spots_of_one_or_two_vertices_are_not_regions():
 
 
 def test_creases_at_seams_do_not_fail_parts_printed_together():
-    """Smoothed 61-label map: thin spots wholly on/next to a seam with a neighbour (creases where
-    organs meet) are listed as seam-backed and do not fail the part; free thin regions (ribs,
-    cartilage) still do; once parts no longer share seams every thin region counts."""
+    """Smoothed 61-label map: rims of smooth organs pass (most thin vertices are rims); thin
+    features wholly on/next to a seam with a neighbour (creases where organs meet) are listed as
+    seam-backed and do not fail the part; free thin features (cartilage) still do; once parts no
+    longer share seams every thin feature counts."""
     from anatomesh.core import label_surfaces, load
     from anatomesh.core.smooth.driver import smooth_surfaces
 
@@ -354,7 +355,12 @@ def test_creases_at_seams_do_not_fail_parts_printed_together():
     rep = pc.check_parts(shells, "fdm")
     parts = {p["name"]: p for p in rep["parts"]}
     backed = [p for p in rep["parts"] if p["passed"] and p["seam_backed_thin_area_mm2"] > 0]
-    assert len(backed) >= 10  # organs with creases only: pass
+    assert len(backed) >= 3  # organs with creases only: pass
+    # 23 of 61 parts failed before rims were told apart; the rest fail for loose shells, thin
+    # cartilage, the lungs' sharp edges, a pinch in the sacrum
+    assert sum(p["passed"] for p in rep["parts"]) >= 50
+    assert sum(p["rims"]["count"] for p in rep["parts"]) > 200
+    assert all(p["reasons"] for p in rep["parts"] if not p["passed"])
     assert all(r["seam_backed"] for p in backed for r in p["thin_regions"])
     assert not parts["costal_cartilages"]["passed"] and parts["costal_cartilages"]["thin_region_count"] > 0
     # a backed part checked alone: its creases count
