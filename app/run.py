@@ -18,7 +18,7 @@ from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing.checks import check_parts
-from . import outputs, stages
+from . import outputs, preprocess, stages
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
@@ -43,6 +43,7 @@ class Result:
     lod: List[Dict] = field(default_factory=list)
     print_check: Optional[Dict] = None
     warnings: List[str] = field(default_factory=list)
+    preprocess: Optional[Dict] = None  # issue 15: steps, parameters, measured effects
 
     @property
     def report_path(self):
@@ -64,9 +65,12 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     volume = load(recipe.input, series=recipe.series, volume_index=recipe.volume_index,
                   labels=recipe.label_table, space=recipe.space, progress=clock.sub(0.2))
     volume, fixes = stages.prepare_volume(volume, recipe)
+    clock.start("preprocess", 0.1, "preprocessing")  # issue 15
+    volume, pre = preprocess.prepare(volume, recipe, clock.sub(0.2))
     res = Result(volume, recipe, fixes=fixes)
     clock.start("extract", 0.2, "extracting surfaces")
-    raw = stages.extract(volume, recipe, clock.sub(0.4))
+    raw = preprocess.extract(volume, recipe, pre, clock.sub(0.4))  # None: nothing special asked
+    raw = raw if raw is not None else stages.extract(volume, recipe, clock.sub(0.4))
     clock.start("smooth", 0.4, f"smoothing ({recipe.smooth})")
     smoothed, res.smoothing = stages.smooth(raw, recipe, clock.sub(0.55))
     clock.start("decimate", 0.55, "decimating")
@@ -74,6 +78,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                                                       clock.sub(0.7))
     res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
     res.fixes += [fix] if fix else []
+    clock.start("difference", 0.65, "difference colours")  # issue 15
+    res.preprocess, pre_warnings = preprocess.finish(res.surfaces, pre, recipe, clock.sub(0.7))
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
     outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
@@ -88,7 +94,10 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                                       min_gap=recipe.min_gap, progress=clock.sub(0.99))
     res.timings = clock.stop()
     res.warnings = reports.warnings_of(volume.warnings, raw.warnings, res.smoothing, res.decimation)
+    res.warnings += pre_warnings
     res.report = reports.build_report(res)
+    if res.preprocess is not None:
+        res.report["preprocess"] = res.preprocess
     reports.save(res.report, recipe, res.plan.report, res.plan.recipe)
     report(progress, 1.0, "done")
     return res
