@@ -1,4 +1,4 @@
-"""The ``anatomesh`` command: ``inspect``, ``mesh`` and ``check`` (one module each);
+"""The ``anatomesh`` command: ``inspect``, ``mesh``, ``check`` and ``preview`` (one module each);
 ``python -m anatomesh.app.cli`` runs it too.
 
 Exit codes (:mod:`.common`): 0 success, 1 a print check failed, 2 bad input — one line on stderr
@@ -12,6 +12,7 @@ from typing import List, Optional
 
 from ...core.model.errors import AnatomeshError, Cancelled
 from . import check, inspect, mesh
+from . import preview  # issue 15: the isovalue gallery
 from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 
@@ -40,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     subs = p.add_subparsers(dest="command")
-    for command in (inspect, mesh, check):
+    for command in (inspect, mesh, check, preview):
         sp = command.add_parser(subs)
         sp.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     return p
