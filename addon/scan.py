@@ -199,7 +199,10 @@ def scan_to_scene(context, volume, items: Sequence, surface: Optional["live.Scan
     members, offsets = [], 0
     pieces_v, pieces_f = [], []
     for m, value, name, color, shared in items:
-        obj = scene.add_surface(coll, name, m.vertices, m.faces, object_props(volume, value, name),
+        props = object_props(volume, value, name)
+        if len(tuple(m.color)) > 3:  # issue 15: fuzzy shells carry their opacity in an RGBA colour
+            props["anatomesh_alpha"] = float(m.color[3])
+        obj = scene.add_surface(coll, name, m.vertices, m.faces, props,
                                 color, render_method, shared_index=shared, vertex_colors=m.vertex_colors)
         if shared is None:  # independent surfaces: stack them into one array set for smoothing
             shared = np.arange(offsets, offsets + m.n_vertices)

@@ -9,6 +9,7 @@ Errors caused by the input (a bad file, a missing label) are reported as ``ERROR
 operator returns ``{'CANCELLED'}``; no exception escapes into Blender.
 """
 from . import decimate, export, paint, printing, recipe, scan, smooth, view
+from . import preprocess  # issue 15
 
 CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOMESH_OT_labels_select,
            scan.ANATOMESH_OT_level_add, scan.ANATOMESH_OT_level_remove, smooth.ANATOMESH_OT_smooth,
@@ -16,3 +17,4 @@ CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOM
            decimate.ANATOMESH_OT_decimate_apply, printing.ANATOMESH_OT_print_check,
            printing.ANATOMESH_OT_print_select_problem, export.ANATOMESH_OT_export,
            recipe.ANATOMESH_OT_recipe_save, recipe.ANATOMESH_OT_recipe_load, view.ANATOMESH_OT_frame_camera)
+CLASSES = CLASSES + preprocess.CLASSES  # issue 15
