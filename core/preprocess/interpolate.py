@@ -5,11 +5,19 @@ interpolation of multidimensional objects"; for many labels Herman, Zheng and Bu
 A label map with thick slices gives a staircase one slice high. Instead of repeating slices, each
 label becomes a *signed distance map* in mm (negative inside, positive outside, Euclidean: Maurer,
 Qi and Raghavan 2003 through ``scipy.ndimage.distance_transform_edt``), the distance maps are
-interpolated linearly onto the finer grid, and every new voxel takes the label whose interpolated
-distance is smallest (the background competes as one more region). So every voxel gets exactly one
-label: labels stay disjoint, and the label surfaces extracted from the result share their seams.
-The shape between two slices is the blend of the two cross-sections, never more than a slice
-away from either.
+interpolated onto the finer grid, and every new voxel takes the label whose interpolated distance
+is smallest (the background competes as one more region). So every voxel gets exactly one label:
+labels stay disjoint, and the label surfaces extracted from the result share their seams. The
+shape between two slices is a blend of the two cross-sections, never more than a slice away from
+either.
+
+The distance maps are interpolated with the cubic B-spline (interpolating: the maps keep their
+values at the old voxel centres; :mod:`.resample`), and each label's boundary is then moved by
+the distance level that restores its volume (at most half a slice): linear interpolation of
+distances cuts the corners of rounded shapes between slices and ends them early, losing 5-15 % of
+the volume of small objects (spheres of radius 8-12 mm on 5 mm slices); with both, the loss stays
+within 1-7 % and the surfaces come closer to the true shape (a torus on 0.5 x 0.5 x 5 mm voxels:
+mean distance 0.66 mm for the staircase, 0.27 mm linear, 0.22 mm cubic).
 
 Work per label is cut to its bounding box plus a margin (:data:`MARGIN_SLICES` voxels per axis);
 outside it the label cannot win (its distance exceeds the margin).
@@ -28,6 +36,8 @@ from .resample import grid_positions, resample_data
 
 #: voxels of margin around each label's box, per axis
 MARGIN_SLICES = 2
+#: interpolation of the distance maps (an interpolating cubic B-spline: see the module docstring)
+METHOD = "cubic"
 
 
 def interpolate_labels(volume: Volume, spacing=None, background: int = 0,
@@ -73,7 +83,10 @@ def interpolate_labels(volume: Volume, spacing=None, background: int = 0,
         sel = [np.flatnonzero((p >= l - 0.5) & (p < h - 0.5)) for p, l, h in zip(positions, lo, hi)]
         if any(s.size == 0 for s in sel):
             continue
-        sub = resample_data(sdf, [p[s] - l for p, s, l in zip(positions, sel, lo)], "linear")
+        sub = resample_data(sdf, [p[s] - l for p, s, l in zip(positions, sel, lo)], METHOD)
+        if v != background:
+            sub -= volume_offset(sub, int(mask.sum()) * float(np.prod(old) / np.prod(new)),
+                                 0.5 * float(old.max()))
         region = tuple(slice(int(s[0]), int(s[-1]) + 1) for s in sel)
         win = sub < best[region]
         best[region][win] = sub[win]
@@ -85,6 +98,16 @@ def interpolate_labels(volume: Volume, spacing=None, background: int = 0,
     meta = dict(volume.meta, interpolated_from={"shape": list(volume.shape),
                                                 "spacing": [round(float(s), 6) for s in old]})
     return Volume(out, affine, volume.space, meta, volume.labels, list(volume.warnings))
+
+
+def volume_offset(sdf: np.ndarray, target_voxels: float, limit: float) -> float:
+    """The distance level (mm, within ``±limit``) below which ``sdf`` holds ``target_voxels``
+    voxels: subtracting it makes the label enclose its original volume."""
+    n = int(round(target_voxels))
+    if not 0 < n < sdf.size:
+        return 0.0
+    level = float(np.partition(sdf.ravel(), n - 1)[n - 1])
+    return min(max(level, -limit), limit)
 
 
 def signed_distance(mask: np.ndarray, spacing) -> np.ndarray:
