@@ -243,7 +243,7 @@ _TYPES = {
     "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
                     "[width, height] in pixels"),
     # preprocessing (issue 15)
-    "resample": (lambda v: _is_number(v) or (isinstance(v, list) and len(v) == 3 and all(_is_number(x) for x in v)),
+    "resample": (lambda v: _is_number(v) or (isinstance(v, list) and len(v) in (1, 3) and all(_is_number(x) for x in v)),
                  "a voxel size in mm or [x, y, z]"),
     "resample_method": (lambda v: isinstance(v, str), "\"linear\", \"cubic\" or \"lanczos\""),
     "roi": (lambda v: isinstance(v, list) and len(v) == 6 and all(_is_number(x) for x in v),

@@ -22,8 +22,9 @@ def add_arguments(m: argparse.ArgumentParser) -> None:
                    help="scalar scans: resample to this voxel size in mm (one number: isotropic)")
     g.add_argument("--resample-method", metavar="linear|cubic|lanczos",
                    help="interpolation for --resample: linear (default), cubic (B-spline), lanczos")
-    g.add_argument("--roi", metavar="X0,Y0,Z0,X1,Y1,Z1",
-                   help="cut the scan to this box in mm (in --space) before anything else")
+    g.add_argument("--roi", nargs="+", metavar="X0 Y0 Z0 X1 Y1 Z1",
+                   help="cut the scan to this box in mm (in --space) before anything else: six numbers, "
+                        "or --roi=X0,Y0,Z0,X1,Y1,Z1")
     g.add_argument("--smooth-volume", metavar="SPEC",
                    help="scalar scans: gaussian:SIGMA_MM, median:SIZE_MM (one value or X,Y,Z) or "
                         "diffusion:ITERATIONS (edge-preserving, Perona-Malik)")
@@ -53,9 +54,11 @@ def apply(args, recipe) -> None:
     for name in SWITCHES:
         if getattr(args, name, None) is not None:
             setattr(recipe, name, getattr(args, name))
-    for name in ("resample", "roi", "smooth_volume"):
+    for name in ("resample", "smooth_volume"):
         if getattr(args, name, None) is not None:
             setattr(recipe, name, getattr(args, name))
+    if args.roi is not None:
+        recipe.roi = parse_numbers(",".join(args.roi), "--roi", (6,))
     if args.resample_method is not None:
         recipe.resample_method = args.resample_method
     if args.close_handles is not None:
