@@ -120,8 +120,8 @@ def volume_steps(volume: Volume, recipe: Recipe) -> List[Tuple[str, Dict, Callab
         out.append(("smooth_volume", {"filter": name, "value": args[0] if len(args) == 1 else args},
                     _smoother(name, args)))
     if recipe.interpolate:
-        out.append(("interpolate", {"method": "shape-based (signed distance, linear)",
-                                    "spacing_mm": round(min(volume.spacing), 6)},
+        out.append(("interpolate", {"method": "shape-based: signed distances, cubic B-spline, "
+                                              "volumes kept", "spacing_mm": round(min(volume.spacing), 6)},
                     lambda v, p: (interpolate_labels(v, progress=p), {})))
     values = None if not volume.is_label_map else select_labels(volume, recipe.labels)
     if recipe.fill_cavities:
