@@ -22,8 +22,8 @@ def add_arguments(m: argparse.ArgumentParser) -> None:
                    help="scalar scans: resample to this voxel size in mm (one number: isotropic)")
     g.add_argument("--resample-method", metavar="linear|cubic|lanczos",
                    help="interpolation for --resample: linear (default), cubic (B-spline), lanczos")
-    g.add_argument("--roi", nargs="+", metavar="X0 Y0 Z0 X1 Y1 Z1",
-                   help="cut the scan to this box in mm (in --space) before anything else: six numbers, "
+    g.add_argument("--roi", nargs="+", metavar="MM",
+                   help="cut the scan to the box X0 Y0 Z0 X1 Y1 Z1 in mm (in --space) before anything else, "
                         "or --roi=X0,Y0,Z0,X1,Y1,Z1")
     g.add_argument("--smooth-volume", metavar="SPEC",
                    help="scalar scans: gaussian:SIGMA_MM, median:SIZE_MM (one value or X,Y,Z) or "
@@ -38,8 +38,8 @@ def add_arguments(m: argparse.ArgumentParser) -> None:
                    help="label maps: fill background pockets enclosed by a label")
     g.add_argument("--close-handles", metavar="MM",
                    help="label maps: plug tunnels (handles) up to MM across; genus before/after reported")
-    g.add_argument("--fuzzy", nargs="+", metavar="I1 I2 [N]",
-                   help="scalar scans: N (default 5) nested isosurfaces over [I1, I2], the middle one "
+    g.add_argument("--fuzzy", nargs="+", metavar="VALUE",
+                   help="I1 I2 [N], scalar scans: N (default 5) nested isosurfaces over [I1, I2], the middle one "
                         "opaque, the others more transparent toward the ends (GLB, Blender)")
     g.add_argument("--precise", action="store_true", default=None,
                    help="scalar scans: refine isosurface triangles onto the trilinear interpolant; "
