@@ -40,6 +40,11 @@ def recipe_from_scene(context):
     _print_to_recipe(r, getattr(context.scene, "anatomesh_print", None))
     r.out_dir = abspath(s.export_dir) or "anatomesh_out"
     r.formats = [_EXPORT_TO_CORE.get(s.export_format, "stl")]
+    pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
+    if pre is not None:
+        from .preprocessing import to_recipe
+
+        to_recipe(pre, r)
     return r
 
 
@@ -109,6 +114,11 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             p.min_wall = recipe.min_wall
         if recipe.min_gap is not None:
             p.min_gap = recipe.min_gap
+    pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
+    if pre is not None:
+        from .preprocessing import from_recipe
+
+        from_recipe(pre, recipe)
     s.export_dir = recipe.out_dir
     fmt = next((f for f in recipe.formats if f in ("stl", "ply", "obj", "glb")), "stl")
     s.export_format = fmt.upper()

@@ -43,6 +43,7 @@ from ..core.geometry.margins import check_margins
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
+from .preprocess_settings import KEYS as PREPROCESS_KEYS, check_preprocess  # preprocessing (issue 15)
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept
@@ -152,6 +153,18 @@ class Recipe:
     # segmentations (issue 14)
     grid: Optional[str] = None
     contours: str = CONTOURS_RASTER
+    # -- preprocessing before and around extraction (issue 15; see app/preprocess_settings.py) --
+    resample: Optional[List[float]] = None
+    resample_method: str = "linear"
+    roi: Optional[List[float]] = None
+    smooth_volume: Optional[str] = None
+    interpolate: bool = False
+    fuzzy_boundary: bool = False
+    fill_cavities: bool = False
+    close_handles: Optional[float] = None
+    fuzzy: Optional[List[float]] = None
+    precise: bool = False
+    difference_colors: bool = False
 
 
 def check_recipe(recipe: Recipe) -> None:
@@ -193,6 +206,7 @@ def check_recipe(recipe: Recipe) -> None:
     if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
         raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "
                              f"got {recipe.web_levels!r}")
+    check_preprocess(recipe)  # preprocessing (issue 15)
 
 
 #: TOML section → {TOML key: Recipe field}
@@ -200,6 +214,7 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "input": {"path": "input", "series": "series", "volume": "volume_index",
               "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space",
               "grid": "grid", "contours": "contours"},
+    "preprocess": {k: k for k in PREPROCESS_KEYS},  # issue 15
     "surfaces": {"cap": "cap", "keep_largest": "keep_largest", "min_component_mm3": "min_component_mm3"},
     "smoothing": {"method": "smooth", "iterations": "iterations", "lambda": "lam", "mu": "mu",
                   "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
@@ -219,6 +234,10 @@ SECTIONS["web"] = {"levels": "web_levels"}
 _NOTES = {
     "input": "scan, label map, mask folder, DICOM SEG/RTSTRUCT; labels: \"all\" or values/names; levels: "
              "isovalues of a scalar scan; grid: a mask name, \"image\" or \"native\"; contours: raster or tile",
+    "preprocess": "before extraction: resample (mm), resample_method (linear, cubic, lanczos), roi "
+                  "(x0,y0,z0,x1,y1,z1 mm), smooth_volume (gaussian:SIGMA_MM, median:SIZE_MM, "
+                  "diffusion:ITERATIONS), interpolate, fuzzy_boundary, fill_cavities, close_handles "
+                  "(mm), fuzzy ([I1, I2, N]), precise, difference_colors",
     "surfaces": "isosurfaces capped at the volume's border; drop small components (mm3)",
     "smoothing": "method: organ, light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
                  "normal_median, none",
@@ -282,6 +301,21 @@ _TYPES = {
     "lod": (lambda v: _is_int(v), "a whole number (GLB levels of detail, 0: none)"),
     "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
                     "[width, height] in pixels"),
+    # preprocessing (issue 15)
+    "resample": (lambda v: _is_number(v) or (isinstance(v, list) and len(v) in (1, 3) and all(_is_number(x) for x in v)),
+                 "a voxel size in mm or [x, y, z]"),
+    "resample_method": (lambda v: isinstance(v, str), "\"linear\", \"cubic\" or \"lanczos\""),
+    "roi": (lambda v: isinstance(v, list) and len(v) == 6 and all(_is_number(x) for x in v),
+            "[x0, y0, z0, x1, y1, z1] in mm"),
+    "smooth_volume": (lambda v: isinstance(v, str), "\"gaussian:SIGMA_MM\", \"median:SIZE_MM\" or \"diffusion:ITERATIONS\""),
+    "interpolate": (lambda v: isinstance(v, bool), "true or false"),
+    "fuzzy_boundary": (lambda v: isinstance(v, bool), "true or false"),
+    "fill_cavities": (lambda v: isinstance(v, bool), "true or false"),
+    "close_handles": (lambda v: _is_number(v), "a size in mm"),
+    "fuzzy": (lambda v: isinstance(v, list) and len(v) in (2, 3) and all(_is_number(x) for x in v),
+              "[I1, I2] or [I1, I2, N]"),
+    "precise": (lambda v: isinstance(v, bool), "true or false"),
+    "difference_colors": (lambda v: isinstance(v, bool), "true or false"),
 }
 # distance colouring and the web page (issue 16)
 _TYPES["distance_to"] = (lambda v: isinstance(v, str) or _is_int(v), "a label name or value")
@@ -289,7 +323,8 @@ _TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x i
                      "a list of distances in mm, e.g. [2, 5, 10]")
 _TYPES["web_levels"] = (lambda v: _is_int(v), "a whole number (1..4)")
 _FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
-                 "max_error", "min_wall", "min_gap", "clearance", "hollow", "drain_diameter"}
+                 "max_error", "min_wall", "min_gap", "clearance", "hollow", "drain_diameter",
+                 "close_handles"}
 
 
 def _is_int(v) -> bool:

@@ -15,11 +15,12 @@ from typing import Dict, List, Optional, Union
 from ..core.io import load
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
-from ..core.model.segmentation import Segmentation, stack_surface_sets
+from ..core.model.errors import AnatomeshError
+from ..core.model.segmentation import Segmentation, as_layers, stack_surface_sets
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from ..core.printing.checks import check_parts
-from . import outputs, printtools, stages
+from . import outputs, preprocess, printtools, stages
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
@@ -46,6 +47,7 @@ class Result:
     warnings: List[str] = field(default_factory=list)
     distance: Optional[Dict] = None   # distance colouring summary (issue 16)
     web: Optional[Dict] = None        # the web page's summary (issue 16)
+    preprocess: Optional[Dict] = None  # issue 15: steps, parameters, measured effects
 
     @property
     def report_path(self):
@@ -66,11 +68,14 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     clock.start("read", 0.0, "reading")
     volume = load(recipe.input, series=recipe.series, volume_index=recipe.volume_index,
                   labels=recipe.label_table, space=recipe.space, grid=recipe.grid,
-                  progress=clock.sub(0.2))
+                  progress=clock.sub(0.1))
+    clock.start("preprocess", 0.1, "preprocessing")  # issue 15
+    volume, pre = _preprocessed(volume, recipe, clock.sub(0.2))
     res = Result(volume, recipe)
-    raw_warnings = _layered_surfaces(volume, recipe, clock, res)
+    raw_warnings = _layered_surfaces(volume, recipe, clock, res, pre)
     res.surfaces, tools = printtools.apply_tools(res.surfaces, recipe, clock.sub(0.7))  # issue 18
     res.fixes += tools
+    res.preprocess, pre_warnings = preprocess.finish(res.surfaces, pre, recipe, clock.sub(0.7))
     res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
@@ -87,17 +92,34 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
                                       min_gap=recipe.min_gap, progress=clock.sub(0.99))
     res.timings = clock.stop()
     res.warnings = reports.warnings_of(volume.warnings, raw_warnings, res.smoothing, res.decimation)
+    res.warnings += pre_warnings
     res.report = reports.build_report(res)
+    if res.preprocess is not None:
+        res.report["preprocess"] = res.preprocess
     reports.save(res.report, recipe, res.plan.report, res.plan.recipe)
     report(progress, 1.0, "done")
     return res
 
 
-def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result) -> List[str]:
+def _preprocessed(volume, recipe: Recipe, progress):
+    """``(volume, preprocessing or None)``: the recipe's preprocessing (:mod:`.preprocess`) of a
+    scan or a one-layer label map."""
+    if not preprocess.active(recipe):
+        return volume, None
+    layers = as_layers(volume)
+    if len(layers) > 1:
+        raise AnatomeshError(f"preprocessing works on one label map or scan; these structures overlap "
+                             f"and lie in {len(layers)} layers: mesh them without the preprocessing "
+                             "flags", volume.meta.get("source"))
+    return preprocess.prepare(layers[0], recipe, progress)
+
+
+def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result, pre=None) -> List[str]:
     """Fix → extract → smooth → decimate each label-map layer on its own (a Segmentation's layers
     share no vertex, so one layer's smoothing, untangling or decimation never moves another's
     surfaces), then one closed shell per structure; fills ``res`` and returns the extraction
-    warnings. A plain Volume is one layer."""
+    warnings. A plain Volume is one layer; ``pre`` (its preprocessing) may extract it its own way
+    (fuzzy boundary, fuzzy shells, precise)."""
     layers = stages.layers_of(volume, recipe)
     sets, smoothing, decimation, warnings = [], [], [], []
     for i, (layer, lrecipe) in enumerate(layers):
@@ -107,7 +129,8 @@ def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result) -> L
         layer, fixes = stages.prepare_volume(layer, lrecipe)
         res.fixes += fixes
         clock.start("extract", at(0.0), "extracting surfaces" + tag)
-        raw = stages.extract(layer, lrecipe, clock.sub(at(0.3)))
+        raw = preprocess.extract(layer, lrecipe, pre, clock.sub(at(0.3)))  # None: the usual way
+        raw = raw if raw is not None else stages.extract(layer, lrecipe, clock.sub(at(0.3)))
         warnings += [w for w in raw.warnings if w not in warnings]
         clock.start("smooth", at(0.3), f"smoothing ({recipe.smooth}){tag}")
         smoothed, rep = stages.smooth(raw, lrecipe, clock.sub(at(0.7)))

@@ -10,6 +10,7 @@ operator returns ``{'CANCELLED'}``; no exception escapes into Blender.
 """
 from . import decimate, export, paint, printing, recipe, scan, smooth, view
 from . import web  # issue 16
+from . import preprocess  # issue 15
 
 CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOMESH_OT_labels_select,
            scan.ANATOMESH_OT_level_add, scan.ANATOMESH_OT_level_remove, smooth.ANATOMESH_OT_smooth,
@@ -19,3 +20,4 @@ CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOM
            recipe.ANATOMESH_OT_recipe_save, recipe.ANATOMESH_OT_recipe_load, view.ANATOMESH_OT_frame_camera)
 # the web page and distance colours (issue 16)
 CLASSES += (web.ANATOMESH_OT_export_web, web.ANATOMESH_OT_paint_margins)
+CLASSES = CLASSES + preprocess.CLASSES  # issue 15

@@ -28,6 +28,13 @@ def extract_and_smooth(context, vol, labels_text: str = "", levels_text: str = "
     with ProgressReporter(context, "extracting") as progress:
         coll = extract_to_scene(context, vol, recipe, looks=looks, render_method=render_method,
                                 progress=progress)
+    return smooth_new_scan(context, coll, method)
+
+
+def smooth_new_scan(context, coll, method: str = "SETTINGS"):
+    """Give a new scan collection the scene's smoothing settings (or ``method``) and smooth it
+    with the command line's driver; returns ``coll``."""
+    settings = context.scene.anatomesh
     values = {k: getattr(settings, k) for k in props.smoothing_properties()}
     if method != "SETTINGS":
         values["smooth_method"] = method

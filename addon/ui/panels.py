@@ -1,5 +1,6 @@
 """The 3D Viewport sidebar tab "Anatomesh": Import, Labels, Smooth, Look and Export panels."""
 
+import bpy
 from bpy.types import Panel, UIList
 
 from .. import scene
@@ -47,6 +48,7 @@ class ANATOMESH_PT_import(_Base, Panel):
         op.extract = False
         if s.info:
             self.layout.label(text=s.info, icon="INFO")
+        _draw_gallery(self, context)  # issue 15
 
 
 class ANATOMESH_PT_labels(_Base, Panel):
@@ -275,3 +277,68 @@ def _fill_decimate(op, s, coll):
     """The Decimate panel's target on an operator button."""
     op.collection, op.target, op.ratio = coll.name, s.target, s.ratio
     op.faces, op.max_error = s.faces, s.max_error
+
+
+# ---------------------------------------------------------------------------------------------
+# preprocessing before and around extraction (issue 15)
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_PT_preprocess(_Base, Panel):
+    bl_label = "Preprocess"
+    bl_idname = "ANATOMESH_PT_preprocess"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        from .. import preprocessing
+
+        s, p = context.scene.anatomesh, context.scene.anatomesh_preprocess
+        layout = self.layout
+        if s.kind == "NONE":
+            layout.label(text="Read a scan first")
+            return
+        col = layout.column(align=True)
+        col.prop(p, "roi")
+        if s.kind == "LEVELS":
+            col.prop(p, "resample")
+            if p.resample > 0:
+                col.prop(p, "resample_method")
+            col.prop(p, "smooth_volume")
+            if p.smooth_volume != "NONE":
+                col.prop(p, "smooth_value")
+            col.prop(p, "fuzzy")
+            if p.fuzzy:
+                row = col.row(align=True)
+                row.prop(p, "fuzzy_low")
+                row.prop(p, "fuzzy_high")
+                row.prop(p, "fuzzy_count")
+            col.prop(p, "precise")
+        else:
+            col.prop(p, "interpolate")
+            col.prop(p, "fuzzy_boundary")
+            col.prop(p, "fill_cavities")
+            col.prop(p, "close_handles")
+        col.prop(p, "difference_colors")
+        layout.operator("anatomesh.preprocess_extract", icon="MOD_SMOOTH")
+        for line in preprocessing.summary_lines(active_scan(context)):
+            layout.label(text=line)
+        if s.kind == "LEVELS":
+            box = layout.box()
+            row = box.row(align=True)
+            row.operator("anatomesh.live_isovalue", text="Live Isovalue", icon="PLAY")
+            if p.live_object and p.live_object in bpy.data.objects:
+                box.prop(p, "live_level", slider=False)
+
+
+def _draw_gallery(self, context):
+    """Import panel addition (issue 15): the isovalue gallery button and the picture."""
+    from .. import preprocessing
+
+    if context.scene.anatomesh.kind != "LEVELS":
+        return
+    layout = self.layout
+    layout.operator("anatomesh.preview_gallery", icon="IMAGE_DATA")
+    img = bpy.data.images.get(preprocessing.GALLERY_IMAGE)
+    if img is not None and img.preview is not None:
+        layout.template_icon(icon_value=img.preview.icon_id, scale=12.0)
+
+
+CLASSES = tuple(c for k in CLASSES for c in ((k, ANATOMESH_PT_preprocess) if k is ANATOMESH_PT_labels else (k,)))

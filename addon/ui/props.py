@@ -260,3 +260,58 @@ def unregister_properties() -> None:
     for owner, attr, _ in _POINTERS:
         if hasattr(getattr(bpy.types, owner), attr):
             delattr(getattr(bpy.types, owner), attr)
+
+
+# ---------------------------------------------------------------------------------------------
+# preprocessing before and around extraction (issue 15): Scene.anatomesh_preprocess
+# ---------------------------------------------------------------------------------------------
+def _live_level_update(self, context):
+    from .. import live_iso
+
+    live_iso.on_level_changed(self, context)
+
+
+class ANATOMESH_PG_preprocess(PropertyGroup):
+    """The Preprocess panel: the recipe's ``[preprocess]`` settings and the live isovalue."""
+
+    resample: FloatProperty(name="Resample", default=0.0, min=0.0, soft_max=5.0, unit="LENGTH",
+                            description="Scalar scans: new isotropic voxel size, mm (0: keep)")
+    resample_method: EnumProperty(name="Method", default="LINEAR", items=(
+        ("LINEAR", "Linear", "Trilinear interpolation"),
+        ("CUBIC", "Cubic B-spline", "Cubic B-spline interpolation (smoothest surfaces)"),
+        ("LANCZOS", "Lanczos", "Lanczos-3 windowed sinc (sharp, low-passes when downsampling)")))
+    roi: StringProperty(name="ROI", description="Box x0,y0,z0,x1,y1,z1 in mm (the scene's space) to "
+                                                "cut the scan to; empty: the whole scan")
+    smooth_volume: EnumProperty(name="Smooth volume", default="NONE", items=(
+        ("NONE", "None", "No volume smoothing"),
+        ("GAUSSIAN", "Gaussian", "Gaussian, sigma in mm"),
+        ("MEDIAN", "Median", "Median over a box, width in mm"),
+        ("DIFFUSION", "Diffusion", "Edge-preserving anisotropic diffusion (Perona-Malik), iterations")))
+    smooth_value: FloatProperty(name="Amount", default=1.0, min=0.0, soft_max=30.0,
+                                description="Gaussian sigma (mm), median width (mm) or diffusion iterations")
+    interpolate: BoolProperty(name="Interpolate slices", default=False,
+                              description="Label maps: shape-based interpolation to isotropic voxels")
+    fuzzy_boundary: BoolProperty(name="Fuzzy boundary", default=False,
+                                 description="Label maps: smooth each label at the voxel level "
+                                             "(stays within one voxel)")
+    fill_cavities: BoolProperty(name="Fill cavities", default=False,
+                                description="Label maps: fill background pockets enclosed by a label")
+    close_handles: FloatProperty(name="Close handles", default=0.0, min=0.0, soft_max=20.0, unit="LENGTH",
+                                 description="Label maps: plug tunnels up to this size, mm (0: off)")
+    fuzzy: BoolProperty(name="Fuzzy isosurface", default=False,
+                        description="Scalar scans: nested shells over an interval, the middle one opaque")
+    fuzzy_low: FloatProperty(name="From", default=200.0)
+    fuzzy_high: FloatProperty(name="To", default=400.0)
+    fuzzy_count: IntProperty(name="Shells", default=5, min=2, max=32)
+    precise: BoolProperty(name="Precise", default=False,
+                          description="Scalar scans: refine triangles onto the trilinear interpolant")
+    difference_colors: BoolProperty(name="Difference colours", default=False,
+                                    description="Colour the surfaces by their distance to the "
+                                                "surfaces without preprocessing")
+    live_level: FloatProperty(name="Live isovalue", default=300.0, update=_live_level_update,
+                              description="Drag: the live isosurface is re-extracted and redrawn")
+    live_object: StringProperty(name="Live object")
+
+
+CLASSES = CLASSES + (ANATOMESH_PG_preprocess,)
+_POINTERS = _POINTERS + (("Scene", "anatomesh_preprocess", ANATOMESH_PG_preprocess),)

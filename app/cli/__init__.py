@@ -1,4 +1,4 @@
-"""The ``anatomesh`` command: ``inspect``, ``mesh``, ``check``, ``web`` and ``batch`` (one module each);
+"""The ``anatomesh`` command: ``inspect``, ``mesh``, ``check``, ``web``, ``batch`` and ``preview`` (one module each);
 ``python -m anatomesh.app.cli`` runs it too.
 
 Exit codes (:mod:`.common`): 0 success, 1 a print check failed, 2 bad input — one line on stderr
@@ -11,8 +11,7 @@ import sys
 from typing import List, Optional
 
 from ...core.model.errors import AnatomeshError, Cancelled
-from . import check, inspect, mesh
-from . import batch, web
+from . import batch, check, inspect, mesh, preview, web
 from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 
@@ -41,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     subs = p.add_subparsers(dest="command")
-    for command in (inspect, mesh, check, web, batch):
+    for command in (inspect, mesh, check, web, batch, preview):
         sp = command.add_parser(subs)
         sp.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     return p

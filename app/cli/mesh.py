@@ -15,6 +15,7 @@ from ..run import run
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
 from .web import add_distance_args, margins_arg  # issue 16
+from . import preprocess_args  # issue 15: --resample, --interpolate, --fuzzy, ...
 
 #: flags that set the Recipe field of the same name as given
 RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
@@ -37,6 +38,7 @@ def add_parser(subs) -> argparse.ArgumentParser:
     _decimation_args(m)
     _print_args(m)
     add_distance_args(m)  # issue 16: distance colouring, web page levels
+    preprocess_args.add_arguments(m)  # issue 15
     m.add_argument("--report", help="report path (default OUT/report.json; recipe.toml is written beside it)")
     m.add_argument("--overwrite", action="store_true", default=None, help="replace existing output files")
     m.set_defaults(func=cmd_mesh)
@@ -166,6 +168,7 @@ def recipe_from_args(args) -> Recipe:
                         ("web_levels", args.web_levels)):  # issue 16
         if value is not None:
             setattr(recipe, name, value)
+    preprocess_args.apply(args, recipe)  # issue 15
     if not recipe.input:
         raise AnatomeshError("no input: give a scan path or a --recipe whose [input] has a path")
     if not recipe.out_dir:
@@ -187,6 +190,8 @@ def cmd_mesh(args) -> int:
     if dec:
         line += (f", decimated {dec['faces_before']} -> {dec['faces_after']} faces "
                  f"(max error {dec['hausdorff_mm']:.3g} mm)")
+    for pre_line in preprocess_args.summary_lines(rep):  # issue 15
+        print(pre_line)
     print(f"{line} -> {recipe.out_dir}; report {result.report_path}")
     check = rep.get("print_check")
     if check is None:
