@@ -17,7 +17,6 @@ from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from ..core.printing.checks import check_parts
 from . import outputs, stages
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
@@ -83,6 +82,8 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
         blender(res, res.plan.scene.get("blend"), render_png=res.plan.scene.get("png"),
                 samples=recipe.render_samples, size=tuple(recipe.render_size))
     if recipe.check:
+        from ..core.printing.checks import check_parts  # speed: loaded only when asked for
+
         clock.start("check", 0.9, "print checks")
         res.print_check = check_parts(res.surfaces, profile=recipe.profile, min_wall=recipe.min_wall,
                                       min_gap=recipe.min_gap, progress=clock.sub(0.99))
