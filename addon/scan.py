@@ -163,6 +163,10 @@ def extract_to_scene(context, volume, *, labels: Sequence = (), levels: Sequence
             else:
                 warnings.append(f"isovalue {lv:g} ({name}) gives no surface: it is outside the data range")
     coll = scan_to_scene(context, volume, items, surface, warnings, render_method)
+    from . import warmup
+
+    if not warmup.ready("smoothing"):  # speed (first run): they compile in the background
+        return coll
     if not _KERNELS_WARM:  # so the first slider move is as fast as the next
         if progress is not None:
             progress(1.0, "first run: compiling the live smoothing kernels once")

@@ -9,7 +9,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from .. import live
+from .. import live, warmup
 from ..common import ProgressReporter, abspath, guarded, load_volume
 from ..scan import chosen_labels, chosen_levels, extract_to_scene, fill_lists, frame_viewports
 from ..ui import props
@@ -43,6 +43,9 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
 
     @guarded
     def execute(self, context):
+        # speed (first run): while the kernels compile in the background, run again when ready
+        if warmup.defer(self, "surfaces" if self.extract else "reading"):
+            return {"FINISHED"}
         settings = context.scene.anatomesh
         t0 = time.perf_counter()
         with ProgressReporter(context, "reading") as progress:
@@ -102,6 +105,8 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
+        if warmup.defer(self):  # speed (first run): run again when the kernels are compiled
+            return {"FINISHED"}
         settings = context.scene.anatomesh
         path = self.filepath or settings.filepath
         if not path:
@@ -131,7 +136,17 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         in_cell = settings.keep_in_cell if self.keep_in_cell == "SETTINGS" else self.keep_in_cell == "YES"
         live.set_scan_settings(coll, smooth_method=method, smooth_iterations=iters, smooth_strength=strength,
                                smooth_max_deviation=maxdev, keep_in_cell=in_cell)
-        if iters > 0 and method != "NONE":
+        if iters > 0 and method != "NONE" and not warmup.ready("smoothing"):
+            # speed (first run): the surfaces are usable now, smoothed once its kernels are ready
+            name = coll.name
+
+            def smooth_later():
+                c = bpy.data.collections.get(name)
+                if c is not None:
+                    live.smooth_collection(c, method, iters, strength, maxdev, in_cell)
+
+            warmup.when_ready("smoothing", smooth_later)
+        elif iters > 0 and method != "NONE":
             with ProgressReporter(context, "smoothing"):
                 live.smooth_collection(coll, method, iters, strength, maxdev, in_cell)
         return _finish_extraction(self, context, coll, t0)

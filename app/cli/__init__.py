@@ -21,8 +21,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_BAD_INPUT
+    from ..warmup import announce_compiling  # speed: one stderr line when kernels compile
+
     try:
-        return args.func(args)
+        with announce_compiling():
+            return args.func(args)
     except AnatomeshError as err:
         if args.debug:
             raise

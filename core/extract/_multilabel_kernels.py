@@ -77,8 +77,9 @@ def crop_pad(data, i0, j0, k0, lut, use_lut, out):
             if use_lut:
                 for k in range(1, n2 - 1):
                     dst[k] = lut[src[k0 + k - 1]]
-            else:
-                dst[1:n2 - 1] = src[k0:k0 + n2 - 2]
+            else:  # a loop, not a slice copy: numba compiles a slice copy's shape checks and
+                for k in range(1, n2 - 1):  # their error messages, seconds of first-run time
+                    dst[k] = src[k0 + k - 1]
 
 
 # ---------------------------------------------------------------------------------------------
