@@ -27,12 +27,13 @@ from typing import Callable, Dict, List, Optional
 
 import bpy
 
+from ..app.warmup import DEFAULT_STEPS, EXTRA_STEPS
+
 #: the add-on's root package (``bl_ext.<repo>.anatomesh`` in Blender) and its folder
 PACKAGE = __package__.rpartition(".")[0]
 ROOT = Path(__file__).parent.parent  # not resolved: the extension folder may be a link
-#: steps of :mod:`..app.warmup` in order; the first session needs DEFAULT ones
-STEPS = ("reading", "surfaces", "smoothing", "decimation and levels of detail",
-         "print checks and fixes")
+#: the steps of :mod:`..app.warmup`, in the order they run
+STEPS = DEFAULT_STEPS + EXTRA_STEPS
 
 #: what the panel shows: running, fraction done, current step, steps finished, error, seconds
 STATE: Dict = {"running": False, "fraction": 0.0, "step": "", "done": [], "error": "",
@@ -113,7 +114,7 @@ def wait(timeout: Optional[float] = None) -> bool:
     return not STATE["running"] and not STATE["error"]
 
 
-def ready(step: str = "surfaces") -> bool:
+def ready(step: str = "reading") -> bool:
     """True when ``step``'s kernels are compiled, or no warm-up runs (they load or compile on
     use as usual)."""
     return not STATE["running"] or step in STATE["done"]
@@ -127,14 +128,21 @@ def when_ready(step: str, callback: Callable[[], None]) -> None:
         _WAITING.append((step, callback))
 
 
-def defer(op, step: str = "surfaces") -> bool:
+def extraction_step(volume) -> str:
+    """The warm-up step whose kernels extracting ``volume``'s surfaces needs."""
+    return "label surfaces" if volume.is_label_map else "isosurfaces"
+
+
+def defer(op, step: str = "reading") -> bool:
     """For an operator's ``execute``: when ``step`` is still compiling in the background, run
     this operator again (same settings) once it is ready and return True — the caller returns
     ``{"FINISHED"}`` at once, so Blender never freezes; False: go on now."""
     if ready(step):
         return False
     settings = {k: getattr(op, k) for k in op.properties.keys() if op.properties.is_property_set(k)}
-    family, name = op.bl_idname.split(".")
+    idname = op.bl_idname  # "ANATOMESH_OT_import_scan" on an instance, "anatomesh.import_scan" in code
+    family, name = idname.split(".") if "." in idname else idname.split("_OT_")
+    family = family.lower()
 
     def rerun():
         getattr(getattr(bpy.ops, family), name)("EXEC_DEFAULT", **settings)

@@ -30,11 +30,11 @@ from typing import Callable, Dict, List, Optional
 
 import numpy as np
 
-#: what a first session needs first (reading and extraction, then the default smoothing), then
-#: the rest; :data:`SURFACES_READY` is the step after which extraction runs without compiling
-DEFAULT_STEPS = ("reading", "surfaces", "smoothing")
-EXTRA_STEPS = ("decimation and levels of detail", "print checks and fixes")
-SURFACES_READY = "surfaces"
+#: what a first session needs first — reading, extraction of label maps and of scans (the
+#: add-on's first extraction waits for these), the default smoothing, the run's report and files
+#: — then the rest
+DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "smoothing", "files and report")
+EXTRA_STEPS = ("more data types", "decimation and levels of detail", "print checks and fixes")
 
 #: a one-line note for runs that compile (the CLI prints it on stderr once)
 FIRST_RUN_NOTE = ("first run: compiling Anatomesh's kernels once (~40 s; `python -m anatomesh.app.warmup` "
@@ -90,7 +90,7 @@ def _on_compile(callback: Callable, once: bool = False):
     """Call ``callback(python_function)`` when numba starts compiling one of our kernels."""
     from numba.core import event
 
-    package = __name__.rpartition(".app.")[0] or "anatomesh"
+    package = (__package__ or "anatomesh.app").rpartition(".")[0]  # run as __main__ too
 
     class _Listener(event.Listener):
         calls = 0
@@ -163,31 +163,52 @@ def _reading(folder: Path) -> None:
         to_volume_layout(stack, np.full(2, 0.5), np.zeros(2))      # fractional → float32
 
 
-def _surfaces(folder: Path) -> None:
-    """Label maps (uint8, uint16; Fortran- and C-ordered) and scans (int16, float32; one and two
-    levels) through the flow without smoothing: read, extract, shells, report, STL."""
+def _label_surfaces(folder: Path) -> None:
+    """A uint8 label map read from NIfTI, its surfaces extracted and split into shells."""
     from ..core.extract.multilabel import label_surfaces
+    from ..core.io import load
 
+    label_surfaces(load(_save_nifti(_label_map(np.uint8), folder / "u8.nii.gz"))).shells()
+
+
+def _isosurfaces(folder: Path) -> None:
+    """An int16 scan read from NIfTI, its isosurface at one level."""
+    from ..core.extract.isosurface import isosurfaces
+    from ..core.io import load
+
+    isosurfaces(load(_save_nifti(_scan(np.int16), folder / "i16.nii.gz")), [300.0], cap=True)
+
+
+def _files_and_report(folder: Path) -> None:
+    """The rest of a run without smoothing: the report's facts and the STL files."""
     _mesh(folder / "u8", _save_nifti(_label_map(np.uint8), folder / "u8.nii.gz"), smooth="none")
-    _mesh(folder / "u16", _save_nifti(_label_map(np.uint16, big=300), folder / "u16.nii.gz"),
-          smooth="none")
-    label_surfaces(np.ascontiguousarray(_label_map(np.uint8))).shells()
     _mesh(folder / "i16", _save_nifti(_scan(np.int16), folder / "i16.nii.gz"), levels=[300.0],
           smooth="none")
-    _mesh(folder / "f32", _save_nifti(_scan(np.float32) + 0.5, folder / "f32.nii.gz"),
-          levels=[300.0, -400.0], smooth="none")
+
+
+def _more_types(folder: Path) -> None:
+    """Label maps with values above 255 (uint16) and float32 scans at two levels."""
+    _mesh(folder / "u16", _save_nifti(_label_map(np.uint16, big=300), folder / "u16.nii.gz"))
+    _mesh(folder / "f32", _save_nifti(_scan(np.float32) + 0.5, folder / "f32.nii.gz",
+                                      spacing=(1.0, 1.0, 1.0)), levels=[300.0, -400.0])
 
 
 def _smoothing(folder: Path) -> None:
-    """The default smoothing of label maps (thick slices: with the staircase pass; isotropic)
-    and of isosurfaces, and the bare float32 Taubin filter on a label set."""
+    """The default smoothing (:func:`anatomesh.app.stages.smooth`) of label surfaces (thick
+    slices: with the staircase pass; isotropic) and of an isosurface, and the bare float32 Taubin
+    filter on a label set (the live slider's)."""
+    from ..core.extract.isosurface import isosurfaces
     from ..core.extract.multilabel import label_surfaces
+    from ..core.model.surfaceset import SurfaceSet
     from ..core.smooth import driver
+    from . import stages
+    from .recipe import Recipe
 
-    _mesh(folder / "thick", _save_nifti(_label_map(np.uint8), folder / "thick.nii.gz"))
-    _mesh(folder / "iso", _save_nifti(_label_map(np.uint8), folder / "iso.nii.gz", (1, 1, 1)))
-    _mesh(folder / "scan", _save_nifti(_scan(np.int16), folder / "scan.nii.gz"), levels=[300.0])
-    s = label_surfaces(_label_map(np.uint8))
+    for spacing in ((1.0, 1.0, 2.5), (1.0, 1.0, 1.0)):
+        s = label_surfaces(_label_map(np.uint8), affine=np.diag(list(spacing) + [1.0]))
+        stages.smooth(s, Recipe())
+    iso = isosurfaces(_scan(np.int16), [300.0], cap=True)
+    stages.smooth(SurfaceSet.from_meshes(iso, np.eye(4)), Recipe())
     box = driver.lattice_constraint(s.affine, s.lattice)
     driver.taubin(s.vertices, s.faces, constraint=box, face_groups=driver.face_groups_of(s.face_labels),
                   iterations=2, precision="float32")
@@ -208,8 +229,11 @@ def _printing(folder: Path) -> None:
 
 _STEPS: Dict[str, Callable[[Path], None]] = {
     "reading": _reading,
-    "surfaces": _surfaces,
+    "label surfaces": _label_surfaces,
+    "isosurfaces": _isosurfaces,
     "smoothing": _smoothing,
+    "files and report": _files_and_report,
+    "more data types": _more_types,
     "decimation and levels of detail": _decimation,
     "print checks and fixes": _printing,
 }

@@ -44,12 +44,14 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
     @guarded
     def execute(self, context):
         # speed (first run): while the kernels compile in the background, run again when ready
-        if warmup.defer(self, "surfaces" if self.extract else "reading"):
+        if warmup.defer(self, "reading"):
             return {"FINISHED"}
         settings = context.scene.anatomesh
         t0 = time.perf_counter()
         with ProgressReporter(context, "reading") as progress:
             vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress)
+        if self.extract and warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
+            return {"FINISHED"}
         settings.filepath = self.filepath
         settings.series = self.series
         settings.label_table = self.label_table
@@ -105,7 +107,7 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
-        if warmup.defer(self):  # speed (first run): run again when the kernels are compiled
+        if warmup.defer(self, "reading"):  # speed (first run): again when the kernels are ready
             return {"FINISHED"}
         settings = context.scene.anatomesh
         path = self.filepath or settings.filepath
@@ -119,6 +121,8 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         t0 = time.perf_counter()
         with ProgressReporter(context, "extracting") as progress:
             vol = load_volume(path, series, table, space, progress=None)
+            if warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
+                return {"FINISHED"}
             if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
                 settings.filepath, settings.series, settings.label_table = self.filepath, series, table
                 fill_lists(settings, vol)

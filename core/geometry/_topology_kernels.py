@@ -153,13 +153,20 @@ def _find(parent, x):
 
 @njit(cache=True)
 def _sort_order(keys, m, order):
-    """``order[:m]`` sorts ``keys[:m]``: insertion sort for the usual handful, numpy beyond."""
-    if m > 32:
-        order[:m] = np.argsort(keys[:m])
-        return
+    """``order[:m]`` sorts ``keys[:m]``: Shell sort (gaps 1, 4, 13, ...), insertion sort for the
+    usual handful of spokes. Written out because ``np.argsort`` alone adds seconds to the
+    first-run compilation of this kernel."""
     for t in range(m):
         order[t] = t
-        u = t
-        while u > 0 and keys[order[u - 1]] > keys[order[u]]:
-            order[u - 1], order[u] = order[u], order[u - 1]
-            u -= 1
+    gap = 1
+    while gap < m // 3:
+        gap = 3 * gap + 1
+    while gap > 0:
+        for t in range(gap, m):
+            x = order[t]
+            u = t
+            while u >= gap and keys[order[u - gap]] > keys[x]:
+                order[u] = order[u - gap]
+                u -= gap
+            order[u] = x
+        gap //= 3
