@@ -10,8 +10,8 @@ _BLOCK = 8  # columns per strip: 8 output lines (one per column) filled along k 
 
 
 @njit(cache=True, nogil=True)
-def transpose_rescale(stack, slope, intercept, out):
-    """``out[i, j, k] = stack[k, j, i] * slope[k] + intercept[k]``, strip by strip.
+def transpose_rescale(stack, slope, intercept, out, k0):
+    """``out[i, j, k0 + k] = stack[k, j, i] * slope[k] + intercept[k]``, strip by strip.
 
     One image row j at a time, in strips of 8 columns: the reads are short contiguous runs
     of each slice's row, the writes fill 8 output lines ``out[i, j, :]`` in order. Serial: on
@@ -23,8 +23,10 @@ def transpose_rescale(stack, slope, intercept, out):
     stack : (K, R, C) array, the raw stored pixel values, slice k, row j, column i.
     slope, intercept : (K,) int64 or float64, the per-slice modality rescale (int64 when every
         value is an integer, so that integer output is exact).
-    out : (C, R, K) C-contiguous int16 or float32, filled in place. The caller guarantees that
-        the rescaled values fit its dtype.
+    out : (C, R, N) C-contiguous int16 or float32, N >= k0 + K; slices k0 .. k0 + K - 1 are
+        filled in place (a block of slices at a time, or all at once with k0 = 0). The caller
+        guarantees that the rescaled values fit its dtype.
+    k0 : int, the first output slice.
     """
     n_k, n_r, n_c = stack.shape
     for j in range(n_r):
@@ -34,4 +36,4 @@ def transpose_rescale(stack, slope, intercept, out):
                 s = slope[k]
                 b = intercept[k]
                 for i in range(i0, i1):
-                    out[i, j, k] = stack[k, j, i] * s + b
+                    out[i, j, k0 + k] = stack[k, j, i] * s + b
