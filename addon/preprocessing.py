@@ -3,11 +3,11 @@ extraction with them through the same app functions as ``anatomesh mesh``, and t
 gallery shown in the Import panel.
 
 The settings live in ``Scene.anatomesh_preprocess`` (:class:`ui.props.ANATOMESH_PG_preprocess`);
-:func:`to_recipe` / :func:`from_recipe` copy them to and from a core ``Recipe`` (so the Recipe
-panel saves and loads them as the ``[preprocess]`` section). :func:`extract_preprocessed` runs
-:func:`anatomesh.app.preprocess.prepare` and :func:`~anatomesh.app.preprocess.extract` and adds
-the surfaces like the Extract button does (collection, objects, materials — fuzzy shells get their
-opacity — live smoothing); what each step did, with its measured effect, is kept on the
+:func:`anatomesh.addon.recipes.preprocess_to_recipe` / ``preprocess_from_recipe`` copy them to and
+from a core ``Recipe`` (the Recipe panel saves and loads them as the ``[preprocess]`` section).
+:func:`extract_preprocessed` runs :func:`anatomesh.app.preprocess.prepare` and
+:func:`~anatomesh.app.preprocess.extract` and adds the surfaces like the Extract button does
+(collection, objects, materials — fuzzy shells get their opacity — live smoothing); what each step did, with its measured effect, is kept on the
 collection (``anatomesh_preprocess``, JSON) and shown in the panel.
 """
 from __future__ import annotations
@@ -20,46 +20,7 @@ import numpy as np
 
 from . import scan
 
-#: UI smoothing filter → recipe filter name
-SMOOTH_FILTERS = {"GAUSSIAN": "gaussian", "MEDIAN": "median", "DIFFUSION": "diffusion"}
 GALLERY_IMAGE = "Anatomesh Gallery"
-
-
-def to_recipe(p, recipe) -> None:
-    """Copy the panel's settings ``p`` into ``recipe`` (in place)."""
-    recipe.resample = [float(p.resample)] if p.resample > 0 else None
-    recipe.resample_method = p.resample_method.lower()
-    recipe.roi = [float(x) for x in p.roi.replace(";", ",").split(",") if x.strip()] if p.roi.strip() else None
-    if p.smooth_volume in SMOOTH_FILTERS:
-        value = int(round(p.smooth_value)) if p.smooth_volume == "DIFFUSION" else float(p.smooth_value)
-        recipe.smooth_volume = f"{SMOOTH_FILTERS[p.smooth_volume]}:{value:g}"
-    else:
-        recipe.smooth_volume = None
-    for name in ("interpolate", "fuzzy_boundary", "fill_cavities", "precise", "difference_colors"):
-        setattr(recipe, name, bool(getattr(p, name)))
-    recipe.close_handles = float(p.close_handles) if p.close_handles > 0 else None
-    recipe.fuzzy = [float(p.fuzzy_low), float(p.fuzzy_high), float(p.fuzzy_count)] if p.fuzzy else None
-    if recipe.fuzzy is not None:
-        recipe.levels = []
-
-
-def from_recipe(p, recipe) -> None:
-    """Put a recipe's ``[preprocess]`` settings into the panel ``p``."""
-    p.resample = float(recipe.resample[0]) if recipe.resample else 0.0
-    p.resample_method = str(recipe.resample_method).upper()
-    p.roi = ",".join(f"{x:g}" for x in recipe.roi) if recipe.roi else ""
-    p.smooth_volume, p.smooth_value = "NONE", p.smooth_value
-    if recipe.smooth_volume:
-        name, _, arg = str(recipe.smooth_volume).partition(":")
-        p.smooth_volume = {v: k for k, v in SMOOTH_FILTERS.items()}.get(name.lower(), "NONE")
-        p.smooth_value = float(arg.split(",")[0]) if arg else p.smooth_value
-    for name in ("interpolate", "fuzzy_boundary", "fill_cavities", "precise", "difference_colors"):
-        setattr(p, name, bool(getattr(recipe, name)))
-    p.close_handles = float(recipe.close_handles or 0.0)
-    p.fuzzy = recipe.fuzzy is not None
-    if recipe.fuzzy:
-        p.fuzzy_low, p.fuzzy_high = recipe.fuzzy[:2]
-        p.fuzzy_count = int(recipe.fuzzy[2]) if len(recipe.fuzzy) == 3 else 5
 
 
 def extract_preprocessed(context, volume, recipe, progress=None) -> bpy.types.Collection:

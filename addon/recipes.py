@@ -42,9 +42,7 @@ def recipe_from_scene(context):
     r.formats = [_EXPORT_TO_CORE.get(s.export_format, "stl")]
     pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
     if pre is not None:
-        from .preprocessing import to_recipe
-
-        to_recipe(pre, r)
+        preprocess_to_recipe(pre, r)
     return r
 
 
@@ -116,9 +114,7 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             p.min_gap = recipe.min_gap
     pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
     if pre is not None:
-        from .preprocessing import from_recipe
-
-        from_recipe(pre, recipe)
+        preprocess_from_recipe(pre, recipe)
     s.export_dir = recipe.out_dir
     fmt = next((f for f in recipe.formats if f in ("stl", "ply", "obj", "glb")), "stl")
     s.export_format = fmt.upper()
@@ -138,3 +134,45 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             item.value, item.name = float(lv), f"level {lv:g}"
     if extract:
         bpy.ops.anatomesh.extract()
+
+
+# -- the Preprocess panel (issue 15) ------------------------------------------------------------
+#: UI smoothing filter → recipe filter name
+SMOOTH_FILTERS = {"GAUSSIAN": "gaussian", "MEDIAN": "median", "DIFFUSION": "diffusion"}
+
+
+def preprocess_to_recipe(p, recipe) -> None:
+    """Copy the Preprocess panel's settings ``p`` into ``recipe`` (in place)."""
+    recipe.resample = [float(p.resample)] if p.resample > 0 else None
+    recipe.resample_method = p.resample_method.lower()
+    recipe.roi = [float(x) for x in p.roi.replace(";", ",").split(",") if x.strip()] if p.roi.strip() else None
+    if p.smooth_volume in SMOOTH_FILTERS:
+        value = int(round(p.smooth_value)) if p.smooth_volume == "DIFFUSION" else float(p.smooth_value)
+        recipe.smooth_volume = f"{SMOOTH_FILTERS[p.smooth_volume]}:{value:g}"
+    else:
+        recipe.smooth_volume = None
+    for name in ("interpolate", "fuzzy_boundary", "fill_cavities", "precise", "difference_colors"):
+        setattr(recipe, name, bool(getattr(p, name)))
+    recipe.close_handles = float(p.close_handles) if p.close_handles > 0 else None
+    recipe.fuzzy = [float(p.fuzzy_low), float(p.fuzzy_high), float(p.fuzzy_count)] if p.fuzzy else None
+    if recipe.fuzzy is not None:
+        recipe.levels = []
+
+
+def preprocess_from_recipe(p, recipe) -> None:
+    """Put a recipe's ``[preprocess]`` settings into the Preprocess panel ``p``."""
+    p.resample = float(recipe.resample[0]) if recipe.resample else 0.0
+    p.resample_method = str(recipe.resample_method).upper()
+    p.roi = ",".join(f"{x:g}" for x in recipe.roi) if recipe.roi else ""
+    p.smooth_volume, p.smooth_value = "NONE", p.smooth_value
+    if recipe.smooth_volume:
+        name, _, arg = str(recipe.smooth_volume).partition(":")
+        p.smooth_volume = {v: k for k, v in SMOOTH_FILTERS.items()}.get(name.lower(), "NONE")
+        p.smooth_value = float(arg.split(",")[0]) if arg else p.smooth_value
+    for name in ("interpolate", "fuzzy_boundary", "fill_cavities", "precise", "difference_colors"):
+        setattr(p, name, bool(getattr(recipe, name)))
+    p.close_handles = float(recipe.close_handles or 0.0)
+    p.fuzzy = recipe.fuzzy is not None
+    if recipe.fuzzy:
+        p.fuzzy_low, p.fuzzy_high = recipe.fuzzy[:2]
+        p.fuzzy_count = int(recipe.fuzzy[2]) if len(recipe.fuzzy) == 3 else 5

@@ -15,15 +15,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
-from ..core.decimate.progressive import progressive
-from ..core.export import SCENE_FORMATS, write_mesh
+from ..core.export.mesh_files import write_mesh
 from ..core.export.common import file_stem, refuse_overwrite, unique_stems
 from ..core.model.errors import AnatomeshError
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from ..core.export.dicom_stl import dicom_reference, write_encapsulated_stl
 from .recipe import DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
 from .stages import clean
 from .web import page_paths, write_page
@@ -72,6 +70,8 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     if WEB_FORMAT in recipe.formats:  # issue 16: the page's folder
         p.extra += page_paths(web_dir(recipe), recipe.web_levels)
     if DICOM_FORMAT in recipe.formats:  # segmentations (issue 14): the study the objects join
+        from ..core.export.dicom_stl import dicom_reference
+
         p.dicom_reference = dicom_reference(volume)
     refuse_overwrite(p.all_paths(), recipe.overwrite)
     return p
@@ -92,18 +92,22 @@ def scan_stem(volume: Volume, recipe: Recipe) -> str:
 
 def write_surfaces(meshes: List[Mesh], p: Plan, title: str, progress: Optional[Progress] = None) -> None:
     """Every per-surface file, then the combined 3MF and the GLB (not blend/png)."""
+    from ..core import export  # speed: the 3MF/GLB writers load when asked for
+
     for i, (m, fs) in enumerate(zip(meshes, p.surfaces)):
         for fmt, path in fs.items():
             if fmt == DICOM_FORMAT:
+                from ..core.export.dicom_stl import write_encapsulated_stl  # pydicom: when asked for
+
                 write_encapsulated_stl(m, path, p.dicom_reference or {}, instance=i + 1)
-            elif fmt in SCENE_FORMATS:
-                SCENE_FORMATS[fmt]([m], path, title=m.name)
+            elif fmt in export.SCENE_FORMAT_NAMES:
+                export.SCENE_FORMATS[fmt]([m], path, title=m.name)
             else:
                 write_mesh(m, path, fmt)
         report(progress, (i + 1) / max(1, len(meshes)) * 0.8, f"wrote {m.name}")
     for fmt in ("3mf", "glb"):
         if fmt in p.scene:
-            SCENE_FORMATS[fmt](meshes, p.scene[fmt], title=title)
+            export.SCENE_FORMATS[fmt](meshes, p.scene[fmt], title=title)
     report(progress, 1.0, "files written")
 
 
@@ -117,6 +121,9 @@ def write_lods(surfaces: SurfaceSet, recipe: Recipe, p: Plan,
     shell's distances to level 0)."""
     if not p.lods or not surfaces.n_faces:
         return []
+    from ..core.decimate.progressive import progressive  # speed: loaded only for --lod
+    from ..core.export import SCENE_FORMATS
+
     ratios = [0.5 ** i for i in range(len(p.lods) - 1, 0, -1)]  # coarsest first, 1.0 implied
     pm = progressive(surfaces, face_ratios=ratios, progress=progress)
     base = p.report.parent.resolve()

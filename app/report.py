@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Dict, List, Optional
 
 import numpy as np
 
-from ..core.geometry.topology import face_components, topology
+from ..core.geometry.topology import area_and_volume, topology
 from ..core.io.describe import describe
-from ..core.model.mesh import Mesh, signed_volume, surface_area
+from ..core.model.mesh import Mesh
 from .outputs import relative
 from .recipe import SMOOTH_NONE, dump_recipe
 from .stages import value_key
@@ -66,14 +66,14 @@ def surface_entry(m: Mesh, extra: Dict, files: Dict[str, Path], smoothing: Dict,
                   decimation: Optional[Dict], base: Path) -> Dict:
     """One surface's entry: its files, topology, size, and the smoothing/decimation measures."""
     topo = topology(m.vertices, m.faces)
-    comps = face_components(m.faces, m.n_vertices)[0] if m.n_faces else 0
+    area, volume = area_and_volume(m.vertices, m.faces)
     return {"value": m.value, "name": m.name, "color": list(m.color),
             "files": {fmt: relative(path, base) for fmt, path in files.items()},
             "vertices": topo.vertices, "faces": topo.faces,
-            "volume_mm3": round(signed_volume(m.vertices, m.faces), 3),
-            "area_mm2": round(surface_area(m.vertices, m.faces), 3),
+            "volume_mm3": round(volume, 3),
+            "area_mm2": round(area, 3),
             "closed": topo.closed, "manifold": topo.manifold, "oriented": topo.oriented,
-            "euler": topo.euler, "genus": topo.genus, "components": comps,
+            "euler": topo.euler, "genus": topo.genus, "components": topo.components,
             "degenerate_faces": topo.degenerate_faces, **_smoothing_fields(smoothing, m),
             **_decimation_fields(decimation, m), **extra}
 

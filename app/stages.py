@@ -25,10 +25,6 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ..core.decimate.qem import decimate_surfaces
-from ..core.extract.isosurface import isosurfaces
-from ..core.extract.multilabel import label_surfaces
-from ..core.geometry.margins import color_by_distance
 from ..core.geometry.topology import component_measures
 from ..core.model.errors import AnatomeshError
 from ..core.model.labels import LabelInfo, select_labels
@@ -37,11 +33,11 @@ from ..core.model.progress import Progress
 from ..core.model.segmentation import Segmentation, as_layers
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from ..core.printing import fixes as printfix
 from ..core.printing.profiles import resolve_profile
-from ..core.smooth.driver import smooth_surfaces
 from .recipe import CONTOURS_TILE, SMOOTH_NONE, Recipe
 
+# speed: each stage imports its room when it runs, so a command loads only what it uses
+# (no smoothing for --smooth none, no decimation without a target, no print fixes unasked)
 
 def prepare_volume(volume: Volume, recipe: Recipe) -> Tuple[Volume, List[Dict]]:
     """Apply the label-map print fixes of ``recipe`` (fuse, thicken) before extraction.
@@ -63,6 +59,7 @@ def prepare_volume(volume: Volume, recipe: Recipe) -> Tuple[Volume, List[Dict]]:
         recipe.labels = wanted
     if recipe.thicken:
         wall = resolve_profile(recipe.profile, recipe.min_wall)["min_wall"]
+        from ..core.printing import fixes as printfix
         volume, info = printfix.thicken_labels(volume, wall, labels=wanted)
         fixes.append({"fix": "thicken", **info})
     return volume, fixes
@@ -73,6 +70,7 @@ def _fuse(volume: Volume, group, wanted):
     if not values or len(values) < 2:
         raise AnatomeshError(f"--fuse needs two or more labels in a group, got {group!r}")
     table = dict(volume.labels or {})
+    from ..core.printing import fixes as printfix
     volume, info = printfix.fuse_labels(volume, values)
     names = [table[v].name if v in table else str(v) for v in values]
     first = table.get(values[0], LabelInfo(values[0], str(values[0])))
@@ -93,10 +91,14 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
     if volume.is_label_map:
         if recipe.levels:
             raise AnatomeshError("--level is for scalar scans; this is a label map (use --labels)", source)
+        from ..core.extract.multilabel import label_surfaces
+
         return label_surfaces(volume, values=select_labels(volume, recipe.labels), progress=progress)
     if not recipe.levels:
         raise AnatomeshError("this is a scalar scan: give one or more isovalues with --level "
                              "(see `anatomesh inspect` for the histogram peaks)", source)
+    from ..core.extract.isosurface import isosurfaces
+
     meshes = isosurfaces(volume, list(recipe.levels), cap=recipe.cap, progress=progress)
     return SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
 
@@ -120,6 +122,7 @@ def smooth(surfaces: SurfaceSet, recipe: Recipe,
     method, settings = smoothing(recipe)
     if method == SMOOTH_NONE:
         return surfaces, {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
+    from ..core.smooth.driver import smooth_surfaces
     out, rep = smooth_surfaces(surfaces, method, progress=progress, **settings)
     return out, rep.as_dict()
 
@@ -142,6 +145,7 @@ def decimate(surfaces: SurfaceSet, recipe: Recipe, default_cap: Optional[float] 
     by_default = "max_error" not in target and default_cap is not None
     if by_default:
         target["max_error"] = round(default_cap, 4)
+    from ..core.decimate.qem import decimate_surfaces
     out, rep = decimate_surfaces(surfaces, progress=progress, **target)
     summary = {k: rep[k] for k in ("faces_before", "faces_after", "seconds") if k in rep}
     summary["target"] = {(k + "_mm" if k == "max_error" else k): v for k, v in target.items()}
@@ -164,6 +168,7 @@ def shells(surfaces: SurfaceSet, recipe: Recipe) -> Tuple[List[Mesh], List[Dict]
     fix's entry (None without it)."""
     fix = None
     if recipe.clearance is not None:
+        from ..core.printing import fixes as printfix
         meshes, info = printfix.separate_parts(surfaces, recipe.clearance)
         fix = {"fix": "clearance", **info}
     else:
@@ -205,6 +210,8 @@ def distance_colors(meshes: List[Mesh], recipe: Recipe) -> Optional[Dict]:
     returns its summary, or None when no target is set."""
     if recipe.distance_to is None:
         return None
+    from ..core.geometry.margins import color_by_distance
+
     _, summary = color_by_distance(meshes, recipe.distance_to, recipe.margins)
     return summary
 

@@ -18,19 +18,30 @@ Public entry points::
     from anatomesh.core import load, isosurface, isosurfaces, label_surfaces, SurfaceSet
     from anatomesh.core import smooth_surfaces, decimate_surfaces, check_parts, topology
 """
-from .model.errors import AnatomeshError, Cancelled
-from .model.labels import LabelInfo
-from .model.mesh import Mesh
-from .model.surfaceset import SurfaceSet
-from .model.volume import Volume
-from .io import load
-from .extract import isosurface, isosurfaces, label_surfaces
-from .smooth.driver import smooth_surfaces
-from .decimate.qem import decimate_mesh, decimate_surfaces
-from .printing.checks import check_parts
-from .export import write_3mf, write_glb, write_mesh
-from .geometry.topology import topology
+from importlib import import_module
 
-__all__ = ["AnatomeshError", "Cancelled", "LabelInfo", "Mesh", "SurfaceSet", "Volume", "load",
-           "isosurface", "isosurfaces", "label_surfaces", "smooth_surfaces", "decimate_mesh",
-           "decimate_surfaces", "check_parts", "write_3mf", "write_glb", "write_mesh", "topology"]
+from .model.errors import AnatomeshError, Cancelled
+
+#: public name → the module defining it, imported on first use (PEP 562) so that a command
+#: loads only the rooms it needs (``anatomesh inspect`` never imports smoothing or decimation)
+_LAZY = {"LabelInfo": ".model.labels", "Mesh": ".model.mesh", "SurfaceSet": ".model.surfaceset",
+         "Volume": ".model.volume", "load": ".io.load", "isosurface": ".extract.isosurface",
+         "isosurfaces": ".extract.isosurface", "label_surfaces": ".extract.multilabel",
+         "smooth_surfaces": ".smooth.driver", "decimate_mesh": ".decimate.qem",
+         "decimate_surfaces": ".decimate.qem", "check_parts": ".printing.checks",
+         "write_3mf": ".export.threemf", "write_glb": ".export.gltf",
+         "write_mesh": ".export.mesh_files", "topology": ".geometry.topology"}
+
+__all__ = ["AnatomeshError", "Cancelled"] + list(_LAZY)
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        value = getattr(import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

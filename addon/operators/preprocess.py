@@ -9,8 +9,9 @@ from bpy.props import FloatProperty, StringProperty
 
 from .. import live_iso, preprocessing
 from ..common import ProgressReporter, active_scan, guarded, load_volume
-from ..recipes import recipe_from_scene
+from ..recipes import preprocess_to_recipe, recipe_from_scene
 from ..scan import frame_viewports
+from .scan import smooth_new_scan
 
 
 def _volume(context):
@@ -35,7 +36,7 @@ class ANATOMESH_OT_preprocess_extract(bpy.types.Operator):
         t0 = time.perf_counter()
         vol = _volume(context)
         recipe = recipe_from_scene(context)
-        preprocessing.to_recipe(context.scene.anatomesh_preprocess, recipe)
+        preprocess_to_recipe(context.scene.anatomesh_preprocess, recipe)
         with ProgressReporter(context, "preprocessing") as progress:
             coll = preprocessing.extract_preprocessed(context, vol, recipe, progress)
         smooth_new_scan(context, coll)

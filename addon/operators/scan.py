@@ -9,7 +9,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from .. import live
+from .. import live, warmup
 from ..common import ProgressReporter, abspath, guarded, load_volume
 from ..scan import extract_to_scene, extraction_recipe, fill_lists, frame_viewports
 from ..ui import props
@@ -39,7 +39,19 @@ def smooth_new_scan(context, coll, method: str = "SETTINGS"):
     if method != "SETTINGS":
         values["smooth_method"] = method
     live.set_scan_settings(coll, **values)
-    if values["smooth_method"] != "NONE":
+    if values["smooth_method"] == "NONE":
+        return coll
+    if not warmup.ready("smoothing"):
+        # speed (first run): the surfaces are usable now, smoothed once its kernels are ready
+        name = coll.name
+
+        def smooth_later():
+            c = bpy.data.collections.get(name)
+            if c is not None:
+                live.smooth_collection(c)
+
+        warmup.when_ready("smoothing", smooth_later)
+    else:
         with ProgressReporter(context, "smoothing"):
             live.smooth_collection(coll)
     return coll
@@ -71,11 +83,16 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
 
     @guarded
     def execute(self, context):
+        # speed (first run): while the kernels compile in the background, run again when ready
+        if warmup.defer(self, "reading"):
+            return {"FINISHED"}
         settings = context.scene.anatomesh
         t0 = time.perf_counter()
         with ProgressReporter(context, "reading") as progress:
             vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress,
                               grid=self.grid)
+        if self.extract and warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
+            return {"FINISHED"}
         settings.filepath = self.filepath
         settings.series = self.series
         settings.grid = self.grid
@@ -127,6 +144,8 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
+        if warmup.defer(self, "reading"):  # speed (first run): again when the kernels are ready
+            return {"FINISHED"}
         settings = context.scene.anatomesh
         path = self.filepath or settings.filepath
         if not path:
@@ -139,12 +158,14 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
         t0 = time.perf_counter()
         with ProgressReporter(context, "reading") as progress:
             vol = load_volume(path, series, table, space, progress=progress, grid=settings.grid)
-            if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
-                settings.filepath, settings.series, settings.label_table = self.filepath, series, table
-                fill_lists(settings, vol)
-            elif (vol.is_label_map and not len(settings.labels)) or (
-                    not vol.is_label_map and not len(settings.levels)):
-                fill_lists(settings, vol)
+        if warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
+            return {"FINISHED"}
+        if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
+            settings.filepath, settings.series, settings.label_table = self.filepath, series, table
+            fill_lists(settings, vol)
+        elif (vol.is_label_map and not len(settings.labels)) or (
+                not vol.is_label_map and not len(settings.levels)):
+            fill_lists(settings, vol)
         coll = extract_and_smooth(context, vol, self.labels if vol.is_label_map else "",
                                   self.levels if not vol.is_label_map else "", self.smooth_method,
                                   settings.render_method)

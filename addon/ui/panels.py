@@ -3,7 +3,7 @@
 import bpy
 from bpy.types import Panel, UIList
 
-from .. import scene
+from .. import scene, warmup
 from ..common import active_scan
 from ..decimation import PREVIEW_MODIFIER
 
@@ -35,6 +35,7 @@ class ANATOMESH_PT_import(_Base, Panel):
 
     def draw(self, context):
         s = context.scene.anatomesh
+        warmup.draw_status(self.layout)  # speed (first run): background kernel compilation
         col = self.layout.column(align=True)
         col.prop(s, "filepath", text="")
         col.prop(s, "label_table", text="Labels")

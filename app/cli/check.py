@@ -14,14 +14,8 @@ import argparse
 from pathlib import Path
 from typing import Dict, List
 
-from ...core.export.common import refuse_overwrite, unique_stems
-from ...core.export.mesh_files import write_stl
-from ...core.export.threemf import write_3mf
 from ...core.model.errors import AnatomeshError
-from ...core.printing.checks import check_parts
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
-from ..check import fix_parts, read_parts
-from ..printtools import hollow_part
 from .mesh import hollow_args
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
@@ -54,6 +48,10 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_check(args) -> int:
+    # speed: the checks, readers and writers load only for this command
+    from ...core.printing.checks import check_parts
+    from ..check import read_parts
+
     fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow))
     if fixing and not args.out:
         raise AnatomeshError("--remove-tiny/--close-holes/--separate/--hollow write fixed files: add --out DIR")
@@ -84,6 +82,12 @@ def cmd_check(args) -> int:
 
 def _write_fixed(meshes, args):
     """Fix the parts; write each as STL and all in ``parts.3mf`` into ``args.out``."""
+    from ...core.export.common import refuse_overwrite, unique_stems
+    from ...core.export.mesh_files import write_stl
+    from ...core.export.threemf import write_3mf
+    from ..check import fix_parts
+    from ..printtools import hollow_part
+
     out = Path(args.out)
     plans = [out / f"{s}.stl" for s in unique_stems([m.name for m in meshes])]
     combined = out / "parts.3mf"

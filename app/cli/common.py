@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Dict, List
 
 from ...core.model.errors import AnatomeshError
-from ..report import json_default
 
 #: 0 success, 1 a print check failed, 2 bad input (one line on stderr), 130 interrupted
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
@@ -47,6 +46,8 @@ def short_list(names: List[str], n: int = 4) -> str:
 
 def write_json(data: Dict, path) -> None:
     """A JSON report at ``path`` (folders made), or one clear error."""
+    from ..report import json_default  # speed: the report module pulls the whole flow
+
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

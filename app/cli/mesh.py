@@ -11,7 +11,6 @@ import sys
 
 from ...core.model.errors import AnatomeshError
 from ..recipe import FORMATS, Recipe, load_recipe
-from ..run import run
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
 from .web import add_distance_args, margins_arg  # issue 16
@@ -177,6 +176,8 @@ def recipe_from_args(args) -> Recipe:
 
 
 def cmd_mesh(args) -> int:
+    from ..run import run  # speed: the flow's modules load only for this command
+
     recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"))
     rep = result.report

@@ -35,21 +35,26 @@ def stl_header(mesh: Mesh) -> bytes:
     return text.ljust(80, b" ")
 
 
-def write_stl(mesh: Mesh, path) -> None:
-    """Binary STL: 80-byte header (``SPACE=`` and ``UNITS=mm``), facet normals from the winding."""
-    v = mesh.vertices.astype(np.float32)
-    f = mesh.faces.astype(np.int64)
-    tri = v[f]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float64)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    n = (n / np.where(norm > 0, norm, 1.0)).astype(np.float32)
-    rec = np.zeros(len(f), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    rec["n"] = n
-    rec["v"] = tri
+def write_stl(mesh: Mesh, path, chunk: int = 1 << 18) -> None:
+    """Binary STL: 80-byte header (``SPACE=`` and ``UNITS=mm``), facet normals from the winding.
+
+    Records are made by a numba kernel ``chunk`` faces at a time and written straight from their
+    buffer, so memory stays bounded for meshes of tens of millions of faces."""
+    from ._stl_kernels import stl_facets
+
+    v = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
+    f = np.ascontiguousarray(mesh.faces)
+    m = len(f)
+    facets = np.empty((min(m, chunk), 12), "<f4")
+    records = np.zeros((min(m, chunk), 25), "<u2")  # 50 bytes: 12 floats + the attribute word
     with atomic_write(path) as fh:
         fh.write(stl_header(mesh))
-        fh.write(np.uint32(len(f)).tobytes())
-        fh.write(rec.tobytes())
+        fh.write(np.uint32(m).astype("<u4").tobytes())
+        for start in range(0, m, chunk):
+            n = min(chunk, m - start)
+            stl_facets(v, f[start:start + n], facets[:n])
+            records[:n, :24] = facets[:n].view("<u2")
+            fh.write(records[:n])
 
 
 def write_ply(mesh: Mesh, path) -> None:

@@ -4,7 +4,8 @@ All kernels work on ``P``: the cropped label map padded with one layer of backgr
 side, ``uint8`` or ``uint16``, shape (n0, n1, n2). Lattice point (a, b, c) of ``P`` is the corner
 shared by voxels (a-1..a, b-1..b, c-1..c); used points have a, b, c >= 1. Work is split by
 lattice planes ``a`` (the outermost axis in C order): count per plane, prefix sums, then fill —
-so the output does not depend on the number of threads. Only ``count`` and ``emit`` are parallel;
+so the output does not depend on the number of threads. Only ``count`` and ``emit`` are parallel
+(with serial twins, ``count_serial`` and ``emit_serial``, for small maps);
 the other passes are cheap (memory-bound or sparse) and a parallel region costs milliseconds
 when other processes share the cores.
 
@@ -77,8 +78,9 @@ def crop_pad(data, i0, j0, k0, lut, use_lut, out):
             if use_lut:
                 for k in range(1, n2 - 1):
                     dst[k] = lut[src[k0 + k - 1]]
-            else:
-                dst[1:n2 - 1] = src[k0:k0 + n2 - 2]
+            else:  # a loop, not a slice copy: numba compiles a slice copy's shape checks and
+                for k in range(1, n2 - 1):  # their error messages, seconds of first-run time
+                    dst[k] = src[k0 + k - 1]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -120,34 +122,53 @@ def _face_mask(P, a, b, mask):
                    | (np.uint8(r11[c - 1] != x) << 2))
 
 
+@njit(cache=True)
+def _count_plane(P, a, mv, mf):
+    """Used lattice points and owned faces (quads) of plane a; ``mv``, ``mf``: uint8 scratch
+    (n2,). Row masks first, then sums: both loops vectorise."""
+    n0, n1, n2 = P.shape
+    v = 0
+    f = 0
+    for b in range(1, n1):
+        _vertex_mask(P, a, b, mv)
+        _face_mask(P, a, b, mf)
+        sv = 0
+        sf = 0
+        for c in range(n2):
+            m = mf[c]
+            sv += mv[c]
+            sf += (m & 1) + ((m >> 1) & 1) + (m >> 2)
+        v += sv
+        f += sf
+    return v, f
+
+
 @njit(parallel=True, cache=True)
 def count(P):
     """Per lattice plane a: used lattice points ``nv[a]`` and faces owned ``nf[a]`` (quads).
 
     Plane a owns the x-faces on it (between voxels a-1 and a) and the y- and z-faces of voxel
-    slab a. Row masks first, then sums: both loops vectorise.
+    slab a. Parallel over planes; :func:`count_serial` is the same on one thread.
     """
     n0, n1, n2 = P.shape
     nv = np.zeros(n0 + 1, np.int64)
     nf = np.zeros(n0 + 1, np.int64)
     for a in prange(1, n0):
-        mv = np.zeros(n2, np.uint8)
-        mf = np.zeros(n2, np.uint8)
-        v = 0
-        f = 0
-        for b in range(1, n1):
-            _vertex_mask(P, a, b, mv)
-            _face_mask(P, a, b, mf)
-            sv = 0
-            sf = 0
-            for c in range(n2):
-                m = mf[c]
-                sv += mv[c]
-                sf += (m & 1) + ((m >> 1) & 1) + (m >> 2)
-            v += sv
-            f += sf
-        nv[a] = v
-        nf[a] = f
+        nv[a], nf[a] = _count_plane(P, a, np.zeros(n2, np.uint8), np.zeros(n2, np.uint8))
+    return nv, nf
+
+
+@njit(cache=True)
+def count_serial(P):
+    """:func:`count` on one thread: for small maps (no threads to start), and a kernel that
+    compiles in a fraction of the parallel one's time (the first extraction after install)."""
+    n0, n1, n2 = P.shape
+    nv = np.zeros(n0 + 1, np.int64)
+    nf = np.zeros(n0 + 1, np.int64)
+    mv = np.zeros(n2, np.uint8)
+    mf = np.zeros(n2, np.uint8)
+    for a in range(1, n0):
+        nv[a], nf[a] = _count_plane(P, a, mv, mf)
     return nv, nf
 
 
@@ -276,26 +297,44 @@ def emit(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks,
     full volume is ``p - 1 + offset``. Quad corners are ordered so the normal points from the
     inside label to the outside label in index space (reversed when ``flip``: a negative
     determinant affine mirrors space). Planes are processed in ``nchunks`` runs of consecutive
-    planes, so each plane's vertex numbers are computed about once.
+    planes, so each plane's vertex numbers are computed about once. Parallel over the runs;
+    :func:`emit_serial` is the same on one thread (same output).
     """
-    n0, n1, n2 = P.shape
     for ch in prange(nchunks):
-        a0 = 1 + ch * (n0 - 1) // nchunks
-        a1 = 1 + (ch + 1) * (n0 - 1) // nchunks  # this chunk owns planes a0 .. a1 - 1
-        if a0 >= a1:
-            continue
-        cur = np.empty(n1 * n2, np.int32)
-        nxt = np.empty(n1 * n2, np.int32)
-        mask = np.zeros(8 * (n2 // 8 + 1), np.uint8)
-        write = a0 < a1  # True; a runtime bool, so numba compiles one _plane_vertices
-        _plane_vertices(P, a0, voff[a0], cur, mask, write, bg, needs, origin, M, offset,
-                        vertices, lattice, complex_)
-        for a in range(a0, a1):
-            if a + 1 < n0:
-                _plane_vertices(P, a + 1, voff[a + 1], nxt, mask, a + 1 < a1, bg, needs, origin,
-                                M, offset, vertices, lattice, complex_)
-            _plane_faces(P, a, qoff[a], cur, nxt, mask, bg, flip, faces, labels)
-            cur, nxt = nxt, cur
+        _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
+                    vertices, lattice, complex_, faces, labels)
+
+
+@njit(cache=True)
+def emit_serial(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks,
+                vertices, lattice, complex_, faces, labels):
+    """:func:`emit` on one thread (see :func:`count_serial`)."""
+    for ch in range(nchunks):
+        _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
+                    vertices, lattice, complex_, faces, labels)
+
+
+@njit(cache=True)
+def _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
+                vertices, lattice, complex_, faces, labels):
+    """Vertices and faces of run ``ch`` of :func:`emit`: planes a0 .. a1 - 1."""
+    n0, n1, n2 = P.shape
+    a0 = 1 + ch * (n0 - 1) // nchunks
+    a1 = 1 + (ch + 1) * (n0 - 1) // nchunks
+    if a0 >= a1:
+        return
+    cur = np.empty(n1 * n2, np.int32)
+    nxt = np.empty(n1 * n2, np.int32)
+    mask = np.zeros(8 * (n2 // 8 + 1), np.uint8)
+    write = a0 < a1  # True; a runtime bool, so numba compiles one _plane_vertices
+    _plane_vertices(P, a0, voff[a0], cur, mask, write, bg, needs, origin, M, offset,
+                    vertices, lattice, complex_)
+    for a in range(a0, a1):
+        if a + 1 < n0:
+            _plane_vertices(P, a + 1, voff[a + 1], nxt, mask, a + 1 < a1, bg, needs, origin,
+                            M, offset, vertices, lattice, complex_)
+        _plane_faces(P, a, qoff[a], cur, nxt, mask, bg, flip, faces, labels)
+        cur, nxt = nxt, cur
 
 
 @njit(cache=True)

@@ -28,8 +28,9 @@ from . import _multilabel_kernels as K
 from .shell_table import tables
 
 MAX_LABEL = 65535
-#: Below this many (cropped, padded) voxels the two parallel kernels run on one thread: starting
-#: threads costs more than it saves there, and far more when other processes keep the cores busy.
+#: Below this many (cropped, padded) voxels the two parallel kernels' serial twins run: starting
+#: threads costs more than it saves there, and far more when other processes keep the cores busy
+#: (the serial twins also compile in a fraction of the time: a first run on a small map is quicker).
 PARALLEL_MIN_VOXELS = 4_000_000
 
 
@@ -130,26 +131,22 @@ def _crop(data: np.ndarray, bg: int, wanted: Optional[List[int]]):
 def _surface(P, bg, lo, origin, M, flip):
     """The kernels' three passes over ``P``: count, emit, split. Returns vertices, faces,
     face_labels, lattice (in P's axis order) and splits (ordered by face)."""
-    threads = numba.get_num_threads()
-    if P.size < PARALLEL_MIN_VOXELS:
-        numba.set_num_threads(1)  # this thread only; restored below
-    try:
-        nv, nq = K.count(P)
-        voff = np.cumsum(nv) - nv
-        qoff = np.cumsum(nq) - nq
-        n, q = int(nv.sum()), int(nq.sum())
-        cycle, joinable, needs = tables()
-        vertices = np.empty((n, 3), np.float32)
-        lattice = np.empty((n, 3), np.int32)
-        complex_ = np.empty(n, np.uint8)
-        faces = np.empty((2 * q, 3), np.int32)
-        face_labels = np.empty((2 * q, 2), np.int32)
-        nchunks = max(1, min(P.shape[0] - 1, 4 * numba.get_num_threads()))
-        offset = np.asarray(lo, np.int64)
-        K.emit(P, P.dtype.type(bg), voff, qoff, origin, M, offset, flip, needs, nchunks,
-               vertices, lattice, complex_, faces, face_labels)
-    finally:
-        numba.set_num_threads(threads)
+    parallel = P.size >= PARALLEL_MIN_VOXELS
+    nv, nq = K.count(P) if parallel else K.count_serial(P)
+    voff = np.cumsum(nv) - nv
+    qoff = np.cumsum(nq) - nq
+    n, q = int(nv.sum()), int(nq.sum())
+    cycle, joinable, needs = tables()
+    vertices = np.empty((n, 3), np.float32)
+    lattice = np.empty((n, 3), np.int32)
+    complex_ = np.empty(n, np.uint8)
+    faces = np.empty((2 * q, 3), np.int32)
+    face_labels = np.empty((2 * q, 2), np.int32)
+    nchunks = max(1, min(P.shape[0] - 1, 4 * numba.get_num_threads()))
+    offset = np.asarray(lo, np.int64)
+    (K.emit if parallel else K.emit_serial)(P, P.dtype.type(bg), voff, qoff, origin, M, offset,
+                                            flip, needs, nchunks, vertices, lattice, complex_,
+                                            faces, face_labels)
     splits = K.splits(P, bg, lattice, offset, faces, face_labels, complex_, cycle, joinable)
     splits = splits[np.argsort(splits[:, 0], kind="stable")]
     return vertices, faces, face_labels, lattice, splits

@@ -1,8 +1,9 @@
 """Topological invariants of triangle meshes: edges, components, closed, manifold, oriented, genus.
 
 For a closed 2-manifold with ``C`` components, Euler characteristic ``χ = V − E + F`` and genus
-``g = (2C − χ) / 2`` (a sphere has χ = 2, g = 0; a torus χ = 0, g = 1). Edge lists are sorted once
-with ``np.unique``-style keys; fan counts per vertex use a numba kernel.
+``g = (2C − χ) / 2`` (a sphere has χ = 2, g = 0; a torus χ = 0, g = 1). :func:`topology` counts
+edges and fans vertex by vertex and components by union-find (numba, linear time); the edge list
+itself (:func:`edge_face_counts`) is sorted once with ``np.unique``-style keys.
 """
 from __future__ import annotations
 
@@ -12,8 +13,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ..model.mesh import degenerate_faces, face_areas, signed_volume
-from . import _neighbors_kernels
-from .kernels import union_find_roots
+from . import _neighbors_kernels, _topology_kernels
 
 
 def directed_edges(faces: np.ndarray) -> np.ndarray:
@@ -58,22 +58,24 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int):
 def face_components(faces: np.ndarray, n_vertices: int) -> Tuple[int, np.ndarray]:
     """Connected components of faces through shared vertices.
 
-    Returns ``(n_components, labels)`` with ``labels`` (M,) int64 in [0, n_components).
-    Faces touching only at a vertex count as connected (printing-wise they are one part).
+    Returns ``(n_components, labels)`` with ``labels`` (M,) int64 in [0, n_components),
+    numbered by each component's smallest vertex index. Faces touching only at a vertex count as
+    connected (printing-wise they are one part).
     """
-    f = np.asarray(faces, dtype=np.int64)
-    m = f.shape[0]
-    if m == 0:
+    f = _index_array(faces)
+    if f.shape[0] == 0:
         return 0, np.zeros(0, np.int64)
-    parent = _connected_vertex_roots(np.r_[f[:, 0], f[:, 1]], np.r_[f[:, 1], f[:, 2]], n_vertices)
-    roots = parent[f[:, 0]]
-    uniq, lab = np.unique(roots, return_inverse=True)
-    return int(uniq.size), lab.astype(np.int64)
+    n = max(int(n_vertices), int(f.max()) + 1)
+    count, labels = _topology_kernels.face_components(f, n)
+    return int(count), labels
 
 
-def _connected_vertex_roots(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """Component representative (smallest member) of each of ``n`` nodes, edges (a[i], b[i])."""
-    return union_find_roots(np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64), int(n))
+def _index_array(faces: np.ndarray) -> np.ndarray:
+    """Faces as a C-contiguous (M, 3) int32 (int64 when indices need it), copied only if needed."""
+    f = np.asarray(faces)
+    if f.dtype == np.int64 and f.size and int(f.max()) >= 2**31:
+        return np.ascontiguousarray(f)
+    return np.ascontiguousarray(f, dtype=np.int32).reshape(-1, 3)
 
 
 @dataclass
@@ -105,12 +107,54 @@ def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> 
     * manifold: no edge has more than two faces and every vertex's faces form one fan;
     * oriented: every edge used once in each direction (needs closed + manifold);
     * genus: ``(2C − χ) / 2`` for closed manifolds, else None.
-    Only vertices used by faces count in V.
+    Only vertices used by faces count in V. Linear time (numba passes per face and per vertex);
+    meshes with faces that repeat a vertex index go through the sorted edge list instead.
     """
+    v = _point_array(vertices)
+    f = _index_array(faces)
+    nv_all = int(v.shape[0])
+    F = int(f.shape[0])
+    if F == 0:
+        return Topology(0, 0, 0, 0, 0, None, False, True, True, 0, 0, 0, 0)
+    _, _, ndeg, repeated = _topology_kernels.face_measures(v, f, float(min_area))
+    if repeated:
+        return _topology_sorted(v, f, min_area)
+    vf_offsets, vf = _neighbors_kernels.vertex_faces(f, np.int64(max(nv_all, int(f.max()) + 1)))
+    E, boundary, nm_edges, unoriented, nm_verts, V = _topology_kernels.vertex_topology(f, vf_offsets, vf)
+    ncomp, _ = face_components(f, nv_all)
+    closed = boundary == 0 and nm_edges == 0
+    manifold = nm_edges == 0 and nm_verts == 0
+    euler = V - E + F
+    genus = None
+    if closed and manifold and (2 * ncomp - euler) % 2 == 0:
+        genus = (2 * ncomp - euler) // 2
+    return Topology(int(V), F, int(E), ncomp, int(euler), genus, bool(closed), bool(manifold),
+                    bool(unoriented == 0), int(boundary), int(nm_edges), int(nm_verts), int(ndeg))
+
+
+def area_and_volume(vertices: np.ndarray, faces: np.ndarray) -> Tuple[float, float]:
+    """``(area mm², enclosed volume mm³)`` in one linear pass; the volume as
+    :func:`anatomesh.core.model.mesh.signed_volume` (positive for outward faces, exact for closed
+    meshes), the area as :func:`anatomesh.core.model.mesh.surface_area`."""
+    f = _index_array(faces)
+    if f.shape[0] == 0:
+        return 0.0, 0.0
+    area, volume, _, _ = _topology_kernels.face_measures(_point_array(vertices), f, 0.0)
+    return float(area), float(volume)
+
+
+def _point_array(vertices: np.ndarray) -> np.ndarray:
+    v = np.asarray(vertices)
+    dtype = v.dtype if v.dtype in (np.float32, np.float64) else np.float64
+    return np.ascontiguousarray(v, dtype=dtype).reshape(-1, 3)
+
+
+def _topology_sorted(vertices: np.ndarray, faces: np.ndarray, min_area: float) -> Topology:
+    """:func:`topology` through the sorted half-edge list (any mesh, degenerate faces too)."""
     f = np.asarray(faces, dtype=np.int64)
     nv_all = int(np.asarray(vertices).shape[0])
     edges, count, balance = edge_face_counts(f, nv_all)
-    used = np.unique(f.ravel()) if f.size else np.zeros(0, np.int64)
+    used = np.unique(f.ravel())
     V, E, F = int(used.size), int(edges.shape[0]), int(f.shape[0])
     boundary = int(np.count_nonzero(count == 1))
     nm_edges = int(np.count_nonzero(count > 2))
@@ -123,7 +167,7 @@ def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> 
     genus = None
     if closed and manifold and (2 * ncomp - euler) % 2 == 0:
         genus = (2 * ncomp - euler) // 2
-    ndeg = int(degenerate_faces(vertices, f, min_area).size) if F else 0
+    ndeg = int(degenerate_faces(vertices, f, min_area).size)
     return Topology(V, F, E, ncomp, euler, genus, closed, manifold, oriented, boundary,
                     nm_edges, int(nm_verts), ndeg)
 

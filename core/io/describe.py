@@ -4,12 +4,13 @@
 """
 from __future__ import annotations
 
-from typing import Dict, List, Union
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
 from ..model.segmentation import Segmentation
 from ..model.volume import Volume
+from .values import value_counts
 
 #: CT tissue classes by Hounsfield units, used to name histogram peaks
 CT_CLASSES = (
@@ -43,8 +44,12 @@ def describe(volume: Union[Volume, Segmentation]) -> Dict:
     if isinstance(volume, Segmentation):
         return _describe_layers(volume)
     data = volume.data
-    finite = np.isfinite(data) if data.dtype.kind == "f" else None
-    vals = data[finite] if finite is not None and not finite.all() else data
+    if volume.is_label_map:  # one counting pass gives the range and each label's voxels
+        values, counts = value_counts(data)
+        vals = values
+    else:
+        finite = np.isfinite(data) if data.dtype.kind == "f" else None
+        vals = data[finite] if finite is not None and not finite.all() else data
     facts = {
         "format": volume.meta.get("format", "unknown"),
         "modality": volume.meta.get("modality", "label map" if volume.is_label_map else "unknown"),
@@ -61,7 +66,7 @@ def describe(volume: Union[Volume, Segmentation]) -> Dict:
         "meta": {k: _jsonable(v) for k, v in volume.meta.items() if k not in PRIVATE_META},
     }
     if volume.is_label_map:
-        facts["labels"] = label_facts(volume)
+        facts["labels"] = label_facts(volume, (values, counts))
     else:
         hounsfield = looks_like_hounsfield(vals)
         if hounsfield and not volume.meta.get("modality"):
@@ -86,17 +91,20 @@ def _describe_layers(seg: Segmentation) -> Dict:
     return facts
 
 
-def label_facts(volume: Volume) -> List[Dict]:
-    """Each label present or named: value, name, colour, voxel count and volume in mm³."""
-    counts = np.bincount(np.asarray(volume.data, dtype=np.int64).ravel()) if volume.data.size else []
+def label_facts(volume: Volume, counted: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> List[Dict]:
+    """Each label present or named: value, name, colour, voxel count and volume in mm³.
+
+    The voxels are counted in one pass (:func:`~anatomesh.core.io.values.value_counts`), or
+    taken from ``counted`` = ``(values, counts)`` of that function when the caller has them."""
+    present, counts = counted if counted is not None else value_counts(volume.data)
+    voxels = dict(zip(present.tolist(), counts.tolist()))
     vox = volume.voxel_volume_mm3()
     table = volume.labels or {}
-    values = sorted(set(int(v) for v in np.flatnonzero(counts)) | set(table))
     out = []
-    for v in values:
+    for v in sorted(set(voxels) | set(table)):
         if v == 0:
             continue
-        n = int(counts[v]) if v < len(counts) else 0
+        n = int(voxels.get(v, 0))
         info = table.get(v)
         out.append({"value": v, "name": info.name if info else f"label_{v}",
                     "color": [round(c, 4) for c in info.color] if info else None,

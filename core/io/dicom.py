@@ -64,7 +64,7 @@ from ..model.errors import AnatomeshError
 from ..model.progress import Progress, report, sub
 from ..model.volume import Volume
 from .dicom_geometry import series_geometry
-from .dicom_pixels import read_pixels, to_volume_layout, transfer_syntax
+from .dicom_pixels import read_series, transfer_syntax
 from .dicom_sop import segmentation_kind
 from .dicom_values import file_names, first_float, float_or, int_or, short_error, text_of
 
@@ -140,11 +140,9 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
     order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
     files = [info.files[i] for i in order]
     headers = [headers[i] for i in order]
-    stack = read_pixels(files, headers, scan.source, sub(progress, 0.3, 0.95))
     slope = np.array([float_or(h, "RescaleSlope", 1.0) for h in headers])
     intercept = np.array([float_or(h, "RescaleIntercept", 0.0) for h in headers])
-    data = to_volume_layout(stack, slope, intercept)
-    del stack
+    data = read_series(files, headers, scan.source, sub(progress, 0.3, 0.95), slope, intercept)
     report(progress, 1.0, "DICOM series read")
     meta = _meta(info, headers, scan.source, step, slope, intercept)
     return Volume(data, affine, "LPS", meta, None, scan.notes + geo_warnings)

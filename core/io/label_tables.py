@@ -29,6 +29,7 @@ import numpy as np
 
 from ..model.errors import AnatomeshError
 from ..model.labels import LabelInfo, label_table_for, name_tokens
+from .values import value_counts
 
 #: images with more distinct values than this are not taken for label maps unless forced
 MAX_AUTO_LABELS = 512
@@ -312,27 +313,14 @@ def is_integer_valued(data: np.ndarray) -> bool:
 
 
 def distinct_values(data: np.ndarray, limit: Optional[int] = None) -> Optional[np.ndarray]:
-    """Sorted distinct values of an integer-valued array; None as soon as there are more than ``limit``.
+    """Sorted distinct values of an integer-valued array; None when there are more than ``limit``.
 
-    Works slab by slab (memory of one slab), with ``bincount`` when the values are small
-    non-negative integers and ``unique`` otherwise.
+    One counting pass over the voxels without copying them (:func:`.values.value_counts`).
     """
-    if data.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    lo, hi = data.min(), data.max()
-    if data.dtype.kind in "biu" and lo >= 0 and hi < 2**20:
-        counts = np.zeros(int(hi) + 1, dtype=np.int64)
-        for s in _slabs(data):
-            counts += np.bincount(np.asarray(s, dtype=np.intp).ravel(), minlength=counts.size)
-            if limit is not None and np.count_nonzero(counts) > limit:
-                return None
-        return np.flatnonzero(counts).astype(np.int64)
-    seen = set()
-    for s in _slabs(data):
-        seen.update(np.unique(s).tolist())
-        if limit is not None and len(seen) > limit:
-            return None
-    return np.array(sorted(int(v) for v in seen), dtype=np.int64)
+    values = value_counts(data)[0]
+    if limit is not None and values.size > limit:
+        return None
+    return values
 
 
 def looks_like_label_map(data: np.ndarray, max_labels: int = MAX_AUTO_LABELS) -> bool:

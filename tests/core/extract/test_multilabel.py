@@ -287,6 +287,17 @@ def test_output_does_not_depend_on_thread_count(monkeypatch):
     assert numba.get_num_threads() == n
 
 
+def test_serial_twins_give_the_parallel_kernels_output(monkeypatch):
+    a = np.asfortranarray(np.random.default_rng(12).integers(0, 6, (25, 14, 11)).astype(np.uint8))
+    monkeypatch.setattr(labels_module, "PARALLEL_MIN_VOXELS", 10**12)  # count/emit_serial
+    serial = label_surfaces(a)
+    monkeypatch.setattr(labels_module, "PARALLEL_MIN_VOXELS", 0)  # the prange kernels
+    parallel = label_surfaces(a)
+    check_shells(serial, np.asarray(a))
+    for field in ("vertices", "faces", "face_labels", "lattice", "splits"):
+        np.testing.assert_array_equal(getattr(serial, field), getattr(parallel, field))
+
+
 # ---------------------------------------------------------------------------------------------
 # values, subsets, background
 # ---------------------------------------------------------------------------------------------

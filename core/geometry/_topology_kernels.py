@@ -1,0 +1,172 @@
+"""Numba kernels behind :func:`anatomesh.core.geometry.topology.topology` (private).
+
+Linear-time passes over a triangle mesh: per-face measures (area, enclosed volume, degenerate
+faces), per-vertex edge and fan counts from the vertex → faces CSR, and connected components by
+union-find. They replace sorting all 3M half-edges (``np.unique``/``argsort``), which took
+seconds per million faces. Faces must not repeat a vertex (the caller checks with
+:func:`face_measures` first).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .kernels import other_corners
+
+
+@njit(cache=True)
+def face_measures(vertices, faces, min_area):
+    """``(area, volume, degenerate, repeated)`` of a triangle mesh.
+
+    area : float64, total area (mm²); volume : float64, enclosed signed volume by the divergence
+    theorem (mm³, positive for outward faces), vertices centred on the first face's first corner
+    so large patient coordinates lose no precision; degenerate : faces with a repeated vertex
+    index or area <= ``min_area``; repeated : faces with a repeated vertex index.
+    """
+    m = faces.shape[0]
+    area = 0.0
+    volume = 0.0
+    degenerate = 0
+    repeated = 0
+    if m == 0:
+        return area, volume, degenerate, repeated
+    c = faces[0, 0]
+    cx, cy, cz = np.float64(vertices[c, 0]), np.float64(vertices[c, 1]), np.float64(vertices[c, 2])
+    for f in range(m):
+        a, b, d = faces[f, 0], faces[f, 1], faces[f, 2]
+        ax, ay, az = vertices[a, 0] - cx, vertices[a, 1] - cy, vertices[a, 2] - cz
+        bx, by, bz = vertices[b, 0] - cx, vertices[b, 1] - cy, vertices[b, 2] - cz
+        dx, dy, dz = vertices[d, 0] - cx, vertices[d, 1] - cy, vertices[d, 2] - cz
+        ux, uy, uz = bx - ax, by - ay, bz - az
+        wx, wy, wz = dx - ax, dy - ay, dz - az
+        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        fa = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+        area += fa
+        volume += ax * (by * dz - bz * dy) + ay * (bz * dx - bx * dz) + az * (bx * dy - by * dx)
+        rep = a == b or b == d or a == d
+        repeated += rep
+        degenerate += rep or fa <= min_area
+    return area, volume / 6.0, degenerate, repeated
+
+
+@njit(cache=True)
+def vertex_topology(faces, vf_offsets, vf):
+    """Edge and fan counts, one vertex at a time.
+
+    Around vertex i each incident face (i, j, k) gives two spokes: j (edge i→j, sign +1) and k
+    (edge k→i, sign -1). Equal spokes are the faces sharing that edge; an edge is counted at its
+    smaller endpoint. Faces sharing an edge at i are linked into fans.
+
+    Returns ``(edges, boundary, nonmanifold_edges, unoriented, pinch_vertices, used_vertices)``:
+    undirected edges; edges with one face; with more than two; two-face edges not used once in
+    each direction; vertices whose faces form more than one fan; vertices with a face.
+    """
+    n = vf_offsets.shape[0] - 1
+    most = 0
+    for i in range(n):
+        most = max(most, vf_offsets[i + 1] - vf_offsets[i])
+    spoke = np.empty(2 * most, np.int64)
+    sign = np.empty(2 * most, np.int64)
+    order = np.empty(2 * most, np.int64)
+    parent = np.empty(most, np.int64)
+    edges = boundary = nonmanifold = unoriented = pinch = used = 0
+    for i in range(n):
+        lo, k = vf_offsets[i], vf_offsets[i + 1] - vf_offsets[i]
+        if k == 0:
+            continue
+        used += 1
+        for p in range(k):
+            parent[p] = p
+            j, l = other_corners(faces, vf[lo + p], i)
+            spoke[2 * p], sign[2 * p] = j, 1
+            spoke[2 * p + 1], sign[2 * p + 1] = l, -1
+        _sort_order(spoke, 2 * k, order)
+        fans = k
+        t = 0
+        while t < 2 * k:
+            w = spoke[order[t]]
+            u = t
+            balance = 0
+            while u < 2 * k and spoke[order[u]] == w:
+                balance += sign[order[u]]
+                if u > t:
+                    ra, rb = _root(parent, order[u] // 2), _root(parent, order[t] // 2)
+                    if ra != rb:
+                        parent[max(ra, rb)] = min(ra, rb)
+                        fans -= 1
+                u += 1
+            if w > i:
+                edges += 1
+                count = u - t
+                boundary += count == 1
+                nonmanifold += count > 2
+                unoriented += count == 2 and balance != 0
+            t = u
+        pinch += fans > 1
+    return edges, boundary, nonmanifold, unoriented, pinch, used
+
+
+@njit(cache=True)
+def face_components(faces, n_vertices):
+    """Components of faces linked through shared vertices: ``(count, labels (M,) int64)``,
+    numbered in the order of each component's smallest vertex index."""
+    parent = np.arange(n_vertices)
+    for f in range(faces.shape[0]):
+        for e in range(2):
+            ra, rb = _find(parent, faces[f, e]), _find(parent, faces[f, e + 1])
+            if ra < rb:
+                parent[rb] = ra
+            elif rb < ra:
+                parent[ra] = rb
+    label = np.full(n_vertices, -1, np.int64)
+    for f in range(faces.shape[0]):
+        label[_find(parent, faces[f, 0])] = 0
+    count = 0
+    for v in range(n_vertices):  # roots are the smallest vertex of their component
+        if label[v] == 0:
+            label[v] = count + 1
+            count += 1
+    out = np.empty(faces.shape[0], np.int64)
+    for f in range(faces.shape[0]):
+        out[f] = label[parent[faces[f, 0]]] - 1
+    return count, out
+
+
+@njit(cache=True, inline="always")
+def _root(parent, a):
+    while parent[a] != a:
+        a = parent[a]
+    return a
+
+
+@njit(cache=True)
+def _find(parent, x):
+    root = x
+    while parent[root] != root:
+        root = parent[root]
+    while parent[x] != root:  # path compression
+        nxt = parent[x]
+        parent[x] = root
+        x = nxt
+    return root
+
+
+@njit(cache=True)
+def _sort_order(keys, m, order):
+    """``order[:m]`` sorts ``keys[:m]``: Shell sort (gaps 1, 4, 13, ...), insertion sort for the
+    usual handful of spokes. Written out because ``np.argsort`` alone adds seconds to the
+    first-run compilation of this kernel."""
+    for t in range(m):
+        order[t] = t
+    gap = 1
+    while gap < m // 3:
+        gap = 3 * gap + 1
+    while gap > 0:
+        for t in range(gap, m):
+            x = order[t]
+            u = t
+            while u >= gap and keys[order[u - gap]] > keys[x]:
+                order[u] = order[u - gap]
+                u -= gap
+            order[u] = x
+        gap //= 3

@@ -1,0 +1,55 @@
+"""First run in Blender (addon/warmup.py): the kernels compile in a background process of the
+running Python, under the add-on's own package name, while operators wait without freezing."""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import bpy
+import pytest
+from conftest import SAMPLE
+
+
+@pytest.fixture
+def warmup(addon):
+    mod = sys.modules[addon.__name__ + ".addon.warmup"]
+    yield mod
+    mod.stop()
+
+
+def _compiled(out: str) -> int:
+    return int(re.search(r"warmup done [\d.]+ s, (\d+) kernels compiled", out).group(1))
+
+
+def test_the_background_process_runs_our_python_under_the_add_on_name(warmup, addon, tmp_path):
+    cmd = warmup.command(["reading"])
+    assert cmd[0] == sys.executable and cmd[3] == addon.__name__ == "bl_ext.anatomesh_dev.anatomesh"
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),  # for these processes only
+               PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    first = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+    assert first.returncode == 0, first.stdout + first.stderr
+    assert _compiled(first.stdout) >= 3
+    saved = list(cache.rglob("*.nbc"))
+    # the kernels were compiled as the add-on's modules, which is what Blender loads
+    assert saved and all(b"bl_ext.anatomesh_dev.anatomesh.core.io." in f.read_bytes() for f in saved)
+    again = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
+    assert again.returncode == 0 and _compiled(again.stdout) == 0  # loaded what the first wrote
+
+
+def test_start_wait_stamp_and_operators_deferred_until_ready(warmup, empty_scene):
+    assert warmup.start(force=True, steps=["reading", "label surfaces"])
+    assert warmup.STATE["running"] and not warmup.ready("label surfaces")
+    seg = str(SAMPLE / "example_seg.nii.gz")
+    # while compiling: the operator returns at once and runs again by itself once ready
+    assert bpy.ops.anatomesh.import_scan(filepath=seg, extract=True) == {"FINISHED"}
+    assert not empty_scene.anatomesh.last_collection
+    assert warmup.wait(timeout=900), warmup.STATE
+    assert warmup.ready("label surfaces") and warmup.STATE["done"] == ["reading", "label surfaces"]
+    coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
+    assert len(coll.all_objects) == 41  # the deferred import ran: every label of the sample
+    assert warmup.stamp_path().exists()
+    assert not warmup.start()  # the stamp says these sources are compiled: no new process
+    assert warmup.status_text() == ""
