@@ -47,9 +47,13 @@ def new_mesh(name: str, vertices: np.ndarray, faces: np.ndarray) -> bpy.types.Me
     return me
 
 
-def set_geometry(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray) -> None:
+def set_geometry(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray,
+                 edges: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
     """Replace a mesh's geometry with triangles in place through the attribute API (materials
-    and the datablock stay): ``vertices`` (N, 3) mm, ``faces`` (M, 3) int."""
+    and the datablock stay): ``vertices`` (N, 3) mm, ``faces`` (M, 3) int. ``edges``: the
+    unique edges (E, 2) and each corner's edge (3M,) when the caller has them
+    (:func:`anatomesh.core.extract.edges.unique_edges`, linear time); else Blender derives them
+    (``calc_edges``)."""
     v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
     f = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
     if f.size and (int(f.min()) < 0 or int(f.max()) >= len(v)):
@@ -57,14 +61,19 @@ def set_geometry(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray) ->
     if len(me.vertices):
         me.clear_geometry()
     me.vertices.add(len(v))
+    if edges is not None:
+        me.edges.add(len(edges[0]))
     me.loops.add(f.size)
     me.polygons.add(len(f))
     if len(v):
         me.attributes["position"].data.foreach_set("vector", v.ravel())
     if len(f):
+        if edges is not None:
+            me.attributes[".edge_verts"].data.foreach_set("value", np.ascontiguousarray(edges[0], np.int32).ravel())
+            me.attributes[".corner_edge"].data.foreach_set("value", np.ascontiguousarray(edges[1], np.int32))
         me.attributes[".corner_vert"].data.foreach_set("value", f.ravel())
         me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
-    me.update(calc_edges=True)
+    me.update(calc_edges=edges is None)
 
 
 def set_positions(mesh: bpy.types.Mesh, vertices: np.ndarray) -> None:

@@ -17,7 +17,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
-from . import scene
+from . import bridge, scene
 
 #: seconds one redraw may take before the drag switches to the coarse preview
 BUDGET_S = 0.2
@@ -29,26 +29,11 @@ _STATE = {"slow": False, "pending": None, "last_s": 0.0}
 
 
 def set_triangles(me: bpy.types.Mesh, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Replace ``me``'s geometry by triangles, edges computed here (no ``calc_edges``)."""
+    """Replace ``me``'s geometry by triangles, edges computed by the core (no ``calc_edges``)."""
     from ..core.extract.edges import unique_edges
 
-    v = np.ascontiguousarray(vertices, np.float32).reshape(-1, 3)
     f = np.ascontiguousarray(faces, np.int32).reshape(-1, 3)
-    edges, corner_edge = unique_edges(f, len(v))
-    if len(me.vertices):
-        me.clear_geometry()
-    me.vertices.add(len(v))
-    me.edges.add(len(edges))
-    me.loops.add(f.size)
-    me.polygons.add(len(f))
-    if len(v):
-        me.attributes["position"].data.foreach_set("vector", v.ravel())
-    if len(f):
-        me.attributes[".edge_verts"].data.foreach_set("value", edges.ravel())
-        me.attributes[".corner_vert"].data.foreach_set("value", f.ravel())
-        me.attributes[".corner_edge"].data.foreach_set("value", corner_edge)
-        me.polygons.foreach_set("loop_start", np.arange(0, f.size, 3, dtype=np.int32))
-    me.update()
+    bridge.set_geometry(me, vertices, f, edges=unique_edges(f, len(vertices)))
 
 
 def extract(volume, level: float, stride: int = 1):

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .kernels import triangle_interval
+
 
 # ---------------------------------------------------------------------------------------------
 # triangle-triangle test on scalars (Möller 1997), the arithmetic of tri_tri_intersect
@@ -26,31 +28,6 @@ def _cross(ax, ay, az, bx, by, bz):
 @njit(cache=True, inline="always")
 def _dot(ax, ay, az, bx, by, bz):
     return ax * bx + ay * by + az * bz
-
-
-@njit(cache=True)
-def _interval(p0, p1, p2, d0, d1, d2):
-    """Interval of a triangle on the intersection line: (lo, hi, coplanar)."""
-    if d0 * d1 > 0.0:
-        a = p2 + (p0 - p2) * d2 / (d2 - d0)
-        b = p2 + (p1 - p2) * d2 / (d2 - d1)
-    elif d0 * d2 > 0.0:
-        a = p1 + (p0 - p1) * d1 / (d1 - d0)
-        b = p1 + (p2 - p1) * d1 / (d1 - d2)
-    elif d1 * d2 > 0.0 or d0 != 0.0:
-        a = p0 + (p1 - p0) * d0 / (d0 - d1)
-        b = p0 + (p2 - p0) * d0 / (d0 - d2)
-    elif d1 != 0.0:
-        a = p1 + (p0 - p1) * d1 / (d1 - d0)
-        b = p1 + (p2 - p1) * d1 / (d1 - d2)
-    elif d2 != 0.0:
-        a = p2 + (p0 - p2) * d2 / (d2 - d0)
-        b = p2 + (p1 - p2) * d2 / (d2 - d1)
-    else:
-        return 0.0, 0.0, True
-    if a > b:
-        a, b = b, a
-    return a, b, False
 
 
 @njit(cache=True, inline="always")
@@ -162,11 +139,11 @@ def tri_tri(X, a0, a1, a2, b0, b1, b2, rel_eps):
     if du0 == 0.0 and du1 == 0.0 and du2 == 0.0:
         return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)
     k = _line_axis(n1x, n1y, n1z, n2x, n2y, n2z)
-    s0, s1, cop = _interval(_pick(k, v0x, v0y, v0z), _pick(k, v1x, v1y, v1z),
+    s0, s1, cop = triangle_interval(_pick(k, v0x, v0y, v0z), _pick(k, v1x, v1y, v1z),
                             _pick(k, v2x, v2y, v2z), dv0, dv1, dv2)
     if cop:
         return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)
-    t0, t1, cop = _interval(_pick(k, u0x, u0y, u0z), _pick(k, u1x, u1y, u1z),
+    t0, t1, cop = triangle_interval(_pick(k, u0x, u0y, u0z), _pick(k, u1x, u1y, u1z),
                             _pick(k, u2x, u2y, u2z), du0, du1, du2)
     if cop:
         return _coplanar(n1x, n1y, n1z, X, a0, a1, a2, b0, b1, b2)

@@ -5,6 +5,8 @@ wrappers in ``intersections.py`` (they validate inputs).
 import numpy as np
 from numba import njit, prange
 
+from .kernels import triangle_interval
+
 
 # ---------------------------------------------------------------------------------------------
 # triangle-triangle intersection (Möller 1997, "A fast triangle-triangle intersection test")
@@ -17,32 +19,6 @@ def _cross(a, b):
 @njit(cache=True)
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(cache=True)
-def _interval(p0, p1, p2, d0, d1, d2):
-    """Interval of the triangle on line L (projections p, signed plane distances d); returns
-    (lo, hi, coplanar)."""
-    if d0 * d1 > 0.0:  # p2 alone on its side
-        a = p2 + (p0 - p2) * d2 / (d2 - d0)
-        b = p2 + (p1 - p2) * d2 / (d2 - d1)
-    elif d0 * d2 > 0.0:  # p1 alone
-        a = p1 + (p0 - p1) * d1 / (d1 - d0)
-        b = p1 + (p2 - p1) * d1 / (d1 - d2)
-    elif d1 * d2 > 0.0 or d0 != 0.0:  # p0 alone
-        a = p0 + (p1 - p0) * d0 / (d0 - d1)
-        b = p0 + (p2 - p0) * d0 / (d0 - d2)
-    elif d1 != 0.0:
-        a = p1 + (p0 - p1) * d1 / (d1 - d0)
-        b = p1 + (p2 - p1) * d1 / (d1 - d2)
-    elif d2 != 0.0:
-        a = p2 + (p0 - p2) * d2 / (d2 - d0)
-        b = p2 + (p1 - p2) * d2 / (d2 - d1)
-    else:
-        return 0.0, 0.0, True
-    if a > b:
-        a, b = b, a
-    return a, b, False
 
 
 @njit(cache=True)
@@ -158,10 +134,10 @@ def tri_tri_intersect(v0, v1, v2, u0, u1, u2, rel_eps):
         k = 1
     if ad[2] > ad[k]:
         k = 2
-    a0, a1, cop = _interval(v0[k], v1[k], v2[k], dv0, dv1, dv2)
+    a0, a1, cop = triangle_interval(v0[k], v1[k], v2[k], dv0, dv1, dv2)
     if cop:
         return _coplanar(n1, v0, v1, v2, u0, u1, u2)
-    b0, b1, cop = _interval(u0[k], u1[k], u2[k], du0, du1, du2)
+    b0, b1, cop = triangle_interval(u0[k], u1[k], u2[k], du0, du1, du2)
     if cop:
         return _coplanar(n1, v0, v1, v2, u0, u1, u2)
     return not (a1 < b0 or b1 < a0)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kernels import other_corners
+from .kernels import find_root, other_corners
 
 
 @njit(cache=True)
@@ -113,14 +113,14 @@ def face_components(faces, n_vertices):
     parent = np.arange(n_vertices)
     for f in range(faces.shape[0]):
         for e in range(2):
-            ra, rb = _find(parent, faces[f, e]), _find(parent, faces[f, e + 1])
+            ra, rb = find_root(parent, faces[f, e]), find_root(parent, faces[f, e + 1])
             if ra < rb:
                 parent[rb] = ra
             elif rb < ra:
                 parent[ra] = rb
     label = np.full(n_vertices, -1, np.int64)
     for f in range(faces.shape[0]):
-        label[_find(parent, faces[f, 0])] = 0
+        label[find_root(parent, faces[f, 0])] = 0
     count = 0
     for v in range(n_vertices):  # roots are the smallest vertex of their component
         if label[v] == 0:
@@ -137,18 +137,6 @@ def _root(parent, a):
     while parent[a] != a:
         a = parent[a]
     return a
-
-
-@njit(cache=True)
-def _find(parent, x):
-    root = x
-    while parent[root] != root:
-        root = parent[root]
-    while parent[x] != root:  # path compression
-        nxt = parent[x]
-        parent[x] = root
-        x = nxt
-    return root
 
 
 @njit(cache=True)

@@ -1,4 +1,5 @@
-"""Small numba kernels shared across rooms: sorted search, face corners, union-find.
+"""Small numba kernels shared across rooms: sorted search, face corners, union-find, a
+triangle's cross product, the triangle interval of the triangle-triangle test.
 
 Public so that kernel modules of other rooms can call them inside their own kernels.
 """
@@ -32,7 +33,9 @@ def other_corners(faces, f, i):
 
 
 @njit(cache=True)
-def _find(parent, x):
+def find_root(parent, x):
+    """Root of ``x`` in the union-find forest ``parent`` (int array, changed in place: path
+    compression)."""
     root = x
     while parent[root] != root:
         root = parent[root]
@@ -51,12 +54,48 @@ def union_find_roots(a, b, n):
     """
     parent = np.arange(n)
     for i in range(a.shape[0]):
-        ra = _find(parent, a[i])
-        rb = _find(parent, b[i])
+        ra = find_root(parent, a[i])
+        rb = find_root(parent, b[i])
         if ra < rb:
             parent[rb] = ra
         elif rb < ra:
             parent[ra] = rb
     for x in range(n):
-        parent[x] = _find(parent, x)
+        parent[x] = find_root(parent, x)
     return parent
+
+
+@njit(cache=True)
+def triangle_interval(p0, p1, p2, d0, d1, d2):
+    """Interval of a triangle on the line where two triangles' planes meet (Möller 1997, "A fast
+    triangle-triangle intersection test"): its corners' projections ``p0..p2`` on the line and
+    signed distances ``d0..d2`` to the other plane; returns ``(lo, hi, coplanar)``."""
+    if d0 * d1 > 0.0:  # p2 alone on its side
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    elif d0 * d2 > 0.0:  # p1 alone
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d1 * d2 > 0.0 or d0 != 0.0:  # p0 alone
+        a = p0 + (p1 - p0) * d0 / (d0 - d1)
+        b = p0 + (p2 - p0) * d0 / (d0 - d2)
+    elif d1 != 0.0:
+        a = p1 + (p0 - p1) * d1 / (d1 - d0)
+        b = p1 + (p2 - p1) * d1 / (d1 - d2)
+    elif d2 != 0.0:
+        a = p2 + (p0 - p2) * d2 / (d2 - d0)
+        b = p2 + (p1 - p2) * d2 / (d2 - d1)
+    else:
+        return 0.0, 0.0, True
+    if a > b:
+        a, b = b, a
+    return a, b, False
+
+
+@njit(cache=True, inline="always")
+def triangle_cross(pos, a, b, c):
+    """The unnormalised normal (b - a) x (c - a) of the triangle (a, b, c) of ``pos`` (N, 3):
+    twice its area times its unit normal."""
+    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+    return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..geometry.kernels import lower_bound, other_corners
+from ..geometry.kernels import lower_bound, other_corners, triangle_cross
 
 #: fast-math without "no NaN / no Inf" assumptions (an infinite radius means "no cap")
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -278,11 +278,7 @@ def face_normals_areas(pos, faces, normals, areas, centroids):
     """Unit normal, area (mm²) and centroid of each face; a zero-area face gets normal 0."""
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz = triangle_cross(pos, a, b, c)
         ln = math.sqrt(nx * nx + ny * ny + nz * nz)
         areas[f] = 0.5 * ln
         if ln > 0.0:

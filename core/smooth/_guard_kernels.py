@@ -7,17 +7,14 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ..geometry.kernels import triangle_cross
 from ._filter_kernels import FAST
 
 
 @njit(cache=True)
 def _fold_check(pos, faces, ref, eps, f):
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-    e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-    e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-    nx = e1y * e2z - e1z * e2y
-    ny = e1z * e2x - e1x * e2z
-    nz = e1x * e2y - e1y * e2x
+    nx, ny, nz = triangle_cross(pos, a, b, c)
     rx, ry, rz = ref[f, 0], ref[f, 1], ref[f, 2]
     r2 = rx * rx + ry * ry + rz * rz
     return r2 > 0.0 and nx * rx + ny * ry + nz * rz <= eps * r2
@@ -83,11 +80,7 @@ def face_terms(pos, faces, origin, normals, areas, tet):
     of every face (a zero-area face gets normal 0)."""
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
+        nx, ny, nz = triangle_cross(pos, a, b, c)
         ln = math.sqrt(nx * nx + ny * ny + nz * nz)
         areas[f] = 0.5 * ln
         k = 1.0 / ln if ln > 0.0 else 0.0
@@ -160,9 +153,26 @@ def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
 def face_cross(pos, faces, out):
     """Unnormalised normal ``(b − a) × (c − a)`` of every face into ``out`` (M, 3)."""
     for f in prange(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
-        e2x, e2y, e2z = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
-        out[f, 0] = e1y * e2z - e1z * e2y
-        out[f, 1] = e1z * e2x - e1x * e2z
-        out[f, 2] = e1x * e2y - e1y * e2x
+        out[f, 0], out[f, 1], out[f, 2] = triangle_cross(pos, faces[f, 0], faces[f, 1], faces[f, 2])
+
+
+@njit(cache=True)
+def solve_spd(m, b):
+    """``m x = b`` by Cholesky (``m`` (R, R) symmetric positive definite float64); NaNs when a
+    pivot is not positive (the caller falls back to least squares)."""
+    r = m.shape[0]
+    low = np.zeros((r, r))
+    x = np.full(r, np.nan)
+    for j in range(r):
+        d = m[j, j] - np.sum(low[j, :j] ** 2)
+        if not d > 1e-12 * max(abs(m[j, j]), 1e-300):
+            return x
+        low[j, j] = np.sqrt(d)
+        for i in range(j + 1, r):
+            low[i, j] = (m[i, j] - np.sum(low[i, :j] * low[j, :j])) / low[j, j]
+    y = np.empty(r)
+    for i in range(r):
+        y[i] = (b[i] - np.sum(low[i, :i] * y[:i])) / low[i, i]
+    for i in range(r - 1, -1, -1):
+        x[i] = (y[i] - np.sum(low[i + 1:, i] * x[i + 1:])) / low[i, i]
+    return x

@@ -125,7 +125,7 @@ def lattice_constraint(affine: np.ndarray, lattice: np.ndarray, *, half: float =
     lat = np.asarray(lattice, np.float64)
     if lat.ndim != 2 or lat.shape[1] != 3:
         raise AnatomeshError(f"lattice must be (N, 3) integer corners, got shape {lat.shape}")
-    center = (lat - 0.5) @ A[:3, :3].T + A[:3, 3]
+    center = np.einsum("ij,kj->ik", lat - 0.5, A[:3, :3]) + A[:3, 3]  # no BLAS threads
     return Constraint(kind=kind, center=center, frame=np.linalg.inv(A[:3, :3]), half=(half,) * 3,
                       max_deviation=max_deviation)
 
