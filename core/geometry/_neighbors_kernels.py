@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .kernels import other_corners
+from .kernels import find_root, other_corners
 
 
 @njit(cache=True)
@@ -334,19 +334,12 @@ def fan_counts(faces, vf_offsets, vf):
         fans = k
         for t in range(1, 2 * k):
             if spoke[order[t]] == spoke[order[t - 1]]:
-                a, b = _root(parent, order[t] // 2), _root(parent, order[t - 1] // 2)
+                a, b = find_root(parent, order[t] // 2), find_root(parent, order[t - 1] // 2)
                 if a != b:
                     parent[max(a, b)] = min(a, b)
                     fans -= 1
         out[i] = fans
     return out
-
-
-@njit(cache=True)
-def _root(parent, a):
-    while parent[a] != a:
-        a = parent[a]
-    return a
 
 
 @njit(cache=True)

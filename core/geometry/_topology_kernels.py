@@ -90,7 +90,7 @@ def vertex_topology(faces, vf_offsets, vf):
             while u < 2 * k and spoke[order[u]] == w:
                 balance += sign[order[u]]
                 if u > t:
-                    ra, rb = _root(parent, order[u] // 2), _root(parent, order[t] // 2)
+                    ra, rb = find_root(parent, order[u] // 2), find_root(parent, order[t] // 2)
                     if ra != rb:
                         parent[max(ra, rb)] = min(ra, rb)
                         fans -= 1
@@ -130,13 +130,6 @@ def face_components(faces, n_vertices):
     for f in range(faces.shape[0]):
         out[f] = label[parent[faces[f, 0]]] - 1
     return count, out
-
-
-@njit(cache=True, inline="always")
-def _root(parent, a):
-    while parent[a] != a:
-        a = parent[a]
-    return a
 
 
 @njit(cache=True)
