@@ -153,12 +153,15 @@ def separate_meshes(meshes: Sequence[Mesh], clearance: float, chosen: Optional[I
     interface face around it (faces whose three corners another part has as a face too; a
     mitred offset), or along its vertex normal where parts touch only along an edge or at a
     point. Flat and gently curved interfaces end up ``clearance`` apart; at the rim of an
-    interface, where the other part's surface runs on past it, the bevel narrows the gap to
-    about ``clearance * sqrt(2/3)``. Parts stay closed and share no vertex afterwards. A part
+    interface, where the other part's surface runs on past it, the bevel would narrow the gap
+    (to ``clearance * sqrt(2/3)`` at a right angle, less at shallow ones): :func:`open_rims`
+    then pushes the rim vertices apart until they are ``clearance`` from the other part. Parts
+    stay closed and share no vertex afterwards. A part
     thinner than ``clearance / 2`` behind its interface would fold: thicken it first.
     ``chosen`` (indices) limits the separation to interfaces between those parts.
 
-    Returns (meshes, ``{"clearance_mm", "moved_vertices", "pairs": [[i, j], ...]}``)."""
+    Returns (meshes, ``{"clearance_mm", "moved_vertices", "rim_vertices", "pairs": [[i, j],
+    ...]}``)."""
     if not np.isfinite(clearance) or clearance <= 0:
         raise AnatomeshError(f"the clearance must be a positive number of mm, got {clearance}")
     shells = list(meshes)
@@ -202,8 +205,54 @@ def separate_meshes(meshes: Sequence[Mesh], clearance: float, chosen: Optional[I
             for o in np.unique(owner[np.isin(wid, w[move])]):
                 if o != k:
                     pairs.add(tuple(sorted((k, int(o)))))
-    return out, {"clearance_mm": float(clearance), "moved_vertices": moved,
+    fixed = [blocked[wid[offs[k]:offs[k + 1]]] for k in range(len(shells))]
+    rims = open_rims(out, sorted(pairs), clearance, fixed)
+    return out, {"clearance_mm": float(clearance), "moved_vertices": moved, "rim_vertices": rims,
                  "pairs": [list(p) for p in sorted(pairs)]}
+
+
+def open_rims(meshes: List[Mesh], pairs, clearance: float, fixed=None, rounds: int = 6) -> int:
+    """Push apart the vertices of separated parts that are still nearer than ``clearance`` mm to
+    their neighbour — at the rim of an interface, where the other part's surface runs on past
+    it at a shallow angle, the mitred offset leaves the gap narrower (0.13 mm of 0.4 mm between
+    the sample's liver and gallbladder). Each round, every such vertex of either part moves half
+    its deficit away from the nearest point of the other (exact point-to-triangle search,
+    :class:`~anatomesh.core.geometry.spatial.TriangleGrid`); ``fixed`` (per part, (N_k,) bool)
+    vertices stay (junctions with parts not separated). Changes ``meshes`` in place; returns the
+    number of vertices moved."""
+    from ..geometry.spatial import TriangleGrid
+
+    moved = set()
+    for _ in range(rounds):
+        pushed = 0
+        for a, b in pairs:
+            for k, o in ((a, b), (b, a)):
+                pushed += _push_from(meshes, k, TriangleGrid(meshes[o].vertices, meshes[o].faces),
+                                     clearance, None if fixed is None else fixed[k], moved)
+        if not pushed:
+            break
+    return len(moved)
+
+
+def _push_from(meshes, k, other, clearance, fixed, moved) -> int:
+    """One round of :func:`open_rims` for part ``k`` against the grid of its neighbour."""
+    v = np.asarray(meshes[k].vertices, np.float64)
+    d, _, q = other.closest(v, max_distance=clearance)
+    near = np.flatnonzero(d < 0.995 * clearance)
+    if fixed is not None:
+        near = near[~fixed[near]]
+    if not near.size:
+        return 0
+    away = v[near] - q[near]
+    ln = np.linalg.norm(away, axis=1, keepdims=True)
+    inward = -vertex_normals(v, meshes[k].faces)[near]  # touching: into the own part
+    away = np.where(ln > 1e-9, away / np.maximum(ln, 1e-300), inward)
+    v = v.copy()
+    v[near] += 0.5 * (clearance - d[near])[:, None] * away
+    meshes[k] = Mesh(v, meshes[k].faces, None, name=meshes[k].name, value=meshes[k].value,
+                     color=meshes[k].color, space=meshes[k].space, meta=dict(meshes[k].meta))
+    moved.update((k, int(i)) for i in near)
+    return int(near.size)
 
 
 def _offset_directions(v, faces, n0, iters: int = 8, cap: float = 3.0) -> np.ndarray:
