@@ -55,7 +55,7 @@ def build_report(result: "Result") -> Dict:
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)
-    for key in ("distance", "web"):  # issue 16
+    for key in ("distance", "web", "preprocess"):  # issues 16, 15
         if getattr(result, key, None):
             out[key] = getattr(result, key)
     out["warnings"] = list(result.warnings)

@@ -73,17 +73,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     volume, pre = _preprocessed(volume, recipe, clock.sub(0.2))
     res = Result(volume, recipe)
     raw_warnings = _layered_surfaces(volume, recipe, clock, res, pre)
-    if recipe.connectors or recipe.hollow is not None:  # issue 18: print tools
-        from .printtools import apply_tools
-
-        res.surfaces, tools = apply_tools(res.surfaces, recipe, clock.sub(0.7))
-        res.fixes += tools
-    pre_warnings = []
-    if pre is not None or recipe.difference_colors:  # issue 15: measured effects, difference colours
-        from .preprocess import finish
-
-        res.preprocess, pre_warnings = finish(res.surfaces, pre, recipe, clock.sub(0.7))
-    res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
+    pre_warnings = _finish_surfaces(res, pre, clock)
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
     outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
@@ -105,11 +95,28 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     t_report = time.perf_counter()  # speed: the report's own facts, timed apart from total_s
     res.report = reports.build_report(res)
     res.report["timings"]["report_s"] = round(time.perf_counter() - t_report, 4)
-    if res.preprocess is not None:
-        res.report["preprocess"] = res.preprocess
     reports.save(res.report, recipe, res.plan.report, res.plan.recipe)
     report(progress, 1.0, "done")
     return res
+
+
+def _finish_surfaces(res: Result, pre, clock: "_Clock") -> List[str]:
+    """After the shells: the print tools (hollowing, connectors), the preprocessing's measured
+    effects and difference colours, the distance colours — each only when the recipe asks.
+    Fills ``res``; returns the preprocessing's warnings."""
+    recipe = res.recipe
+    if recipe.connectors or recipe.hollow is not None:  # issue 18: print tools
+        from .printtools import apply_tools
+
+        res.surfaces, tools = apply_tools(res.surfaces, recipe, clock.sub(0.7))
+        res.fixes += tools
+    warnings: List[str] = []
+    if pre is not None or recipe.difference_colors:  # issue 15
+        from .preprocess import finish
+
+        res.preprocess, warnings = finish(res.surfaces, pre, recipe, clock.sub(0.7))
+    res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
+    return warnings
 
 
 def _preprocessed(volume, recipe: Recipe, progress):
