@@ -15,10 +15,13 @@ def _cross(ax, ay, bx, by, cx, cy):
 
 
 @njit(cache=True)
-def ear_clip(x, y):
+def ear_clip(x, y, min_height=0.0):
     """Triangulate the closed polygon (x, y) by ear clipping (Meisters 1975; Eberly 2002,
     "Triangulation by ear clipping"), keeping its orientation. Weakly simple polygons (holes joined
-    by a bridge: repeated points) work: points at a candidate ear's corners do not block it.
+    by a bridge: repeated points) work: points at a candidate ear's corners do not block it. A corner
+    whose sine is below 1e-9 (collinear up to rounding, e.g. a cut across a flat face) is not an
+    ear, nor one less than ``min_height`` from the chord of its neighbours (a sliver that rounding
+    to float32 would flatten), so no such triangle is made while a proper ear remains.
     Returns (n - 2, 3) int64 indices."""
     n = x.size
     area = 0.0
@@ -34,7 +37,10 @@ def ear_clip(x, y):
     t, left, i, tries = 0, n, 0, 0
     while left > 3:
         p, q = prv[i], nxt[i]
-        ear = s * _cross(x[p], y[p], x[i], y[i], x[q], y[q]) > 0
+        # convex by more than rounding: (nearly) collinear corners are never clipped alone
+        span = np.hypot(x[i] - x[p], y[i] - y[p]) * np.hypot(x[q] - x[i], y[q] - y[i])
+        chord = np.hypot(x[q] - x[p], y[q] - y[p])
+        ear = s * _cross(x[p], y[p], x[i], y[i], x[q], y[q]) > max(1e-9 * span, min_height * chord)
         if ear:
             k = nxt[q]
             while k != p:

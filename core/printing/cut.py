@@ -4,7 +4,8 @@
   (:func:`.surgery.split_by_level`, one new vertex per crossing edge, shared by both sides); the
   cut loops are nested by the even-odd rule (outer boundaries and holes,
   :func:`anatomesh.core.geometry.polygons.nest`) and each region is capped by ear clipping
-  (:func:`anatomesh.core.geometry.polygons.triangulate`). Both halves use the same cap (one
+  (:func:`anatomesh.core.geometry.polygons.triangulate`), then flipped to the constrained
+  Delaunay triangulation (no slivers: pins can be drilled into it). Both halves use the same cap (one
   facing each way), so they are closed, manifold, consistently oriented, and their volumes add
   up to the part's.
 * :func:`plan_cuts` — axis-aligned planes in the part's bounding box: the fewest cuts such that
@@ -23,9 +24,9 @@ from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
-from ..geometry.polygons import nest, signed_area, triangulate
+from ..geometry.polygons import delaunay_flips, nest, signed_area, triangulate
 from ..model.errors import AnatomeshError
-from ..model.mesh import Mesh, check_arrays, compact, signed_volume
+from ..model.mesh import Mesh, check_arrays, compact, signed_volume, weld_ids
 from .connectors import add_connectors, interface_faces
 from .fixes import boundary_loops
 from .surgery import split_by_level
@@ -34,7 +35,9 @@ AXES = "xyz"
 #: pieces are planned this much (mm) inside the build volume, so rounding never makes one too big
 FIT_MARGIN_MM = 0.01
 #: a cut plane keeps this far (mm) from every vertex (moved by as little as needed)
-VERTEX_CLEARANCE_MM = 1e-3
+VERTEX_CLEARANCE_MM = 0.01
+#: cap triangles lower than this (mm) are avoided where ear clipping can (float32 flattens them)
+SLIVER_MM = 1e-4
 #: cut positions sampled per axis when planning
 _SAMPLES = 256
 
@@ -56,8 +59,8 @@ def cut_by_plane(mesh: Mesh, point: Sequence[float], normal: Sequence[float]) ->
                              "its holes first (anatomesh check --close-holes)")
     v2, f2, above = _split(v, f, np.asarray(point, np.float64), n)
     cap = _cap(v2, f2[~above], n, mesh.name)
-    return _piece(v2, np.concatenate([f2[~above], cap]), mesh), \
-        _piece(v2, np.concatenate([f2[above], cap[:, ::-1]]), mesh)
+    return _piece(v2, np.concatenate([f2[~above], cap]), mesh, first_new=len(v)), \
+        _piece(v2, np.concatenate([f2[above], cap[:, ::-1]]), mesh, first_new=len(v))
 
 
 def _split(v, f, point, n):
@@ -112,18 +115,31 @@ def _cap(v: np.ndarray, below: np.ndarray, n: np.ndarray, name: str) -> np.ndarr
             continue
         kids = [h for h in range(len(loops)) if holes[h] and parents[h] == k]
         ids = np.concatenate([loops[k]] + [loops[h] for h in kids])
-        out.append(ids[triangulate(uv[k], [uv[h] for h in kids])])
+        out.append(ids[triangulate(uv[k], [uv[h] for h in kids], min_height=SLIVER_MM)])
     cap = np.concatenate(out)
     cap = cap[(cap[:, 0] != cap[:, 1]) & (cap[:, 1] != cap[:, 2]) & (cap[:, 2] != cap[:, 0])]
+    cap = delaunay_flips(v @ plane_frame(n).T, cap, SLIVER_MM)
     he = np.concatenate([cap[:, [0, 1]], cap[:, [1, 2]], cap[:, [2, 0]]])
     if np.any((he[:, 0] == a) & (he[:, 1] == b)):
         cap = cap[:, ::-1]
     return cap
 
 
-def _piece(v: np.ndarray, f: np.ndarray, like: Mesh, name: str = None) -> Mesh:
-    vv, ff, _, _ = compact(v, f)
-    return Mesh(vv.astype(np.float32), ff.astype(np.int32), None, name=name or like.name,
+def _piece(v: np.ndarray, f: np.ndarray, like: Mesh, name: str = None, first_new: int = None) -> Mesh:
+    """The faces ``f`` as a float32 Mesh. Crossing points (indices from ``first_new``) that
+    float32 makes one (a few µm apart where cut planes meet) are merged and the faces between
+    them dropped; the part's own vertices are kept apart even where they coincide (a pinch)."""
+    v32 = np.asarray(v, np.float32)
+    ids = np.arange(len(v32))
+    if first_new is not None and first_new < len(v32):
+        w = weld_ids(v32[first_new:])
+        rep = np.zeros(w.max() + 1, np.int64)
+        rep[w[::-1]] = np.arange(len(w))[::-1]  # the first crossing point at each position
+        ids[first_new:] = first_new + rep[w]
+    f = ids[f]
+    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
+    vv, ff, _, _ = compact(v32, f)
+    return Mesh(vv, ff.astype(np.int32), None, name=name or like.name,
                 value=like.value, color=like.color, space=like.space)
 
 
@@ -141,11 +157,13 @@ def section_areas(mesh: Mesh, axis: int, positions: np.ndarray) -> np.ndarray:
     u, w = (axis + 1) % 3, (axis + 2) % 3
     out = np.zeros(len(positions))
     for k, t in enumerate(np.asarray(positions, np.float64)):
-        q = p[(lo < t) & (hi > t)]
+        q = p[(lo <= t) & (hi >= t)]
+        s = q[:, :, axis] - t
+        s = np.where(s == 0, 1e-12, s)  # a vertex on the plane counts as above it
+        cross = (s < 0).any(axis=1) & (s > 0).any(axis=1)
+        q, s = q[cross], s[cross]
         if len(q) == 0:
             continue
-        s = q[:, :, axis] - t
-        s = np.where(s == 0, 1e-12, s)
         s1, q1 = np.roll(s, -1, axis=1), np.roll(q, -1, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):  # edges not crossing: unused
             x = q + (s / (s - s1))[:, :, None] * (q1 - q)  # crossing point of edge c -> c+1
@@ -220,12 +238,14 @@ def plan_cuts(mesh: Mesh, size: Sequence[float]) -> List[Tuple[int, float]]:
 # ---------------------------------------------------------------------------------------------
 # the whole tool
 # ---------------------------------------------------------------------------------------------
-def cut_along(mesh: Mesh, cuts: Sequence[Tuple[int, float]]) -> List[Mesh]:
+def cut_along(mesh: Mesh, cuts: Sequence[Tuple[int, float]]) -> Tuple[List[Mesh], List[Tuple[int, float]]]:
     """``mesh`` cut by every axis-aligned plane of ``cuts`` (each piece only by the planes that
-    cross it), pieces named ``<part>_1``, ``<part>_2``, ... (the part alone keeps its name)."""
-    pieces = [mesh]
+    cross it), pieces named ``<part>_1``, ``<part>_2``, ... (the part alone keeps its name).
+    Returns (pieces, the cuts as made: each plane moved off the vertices, :func:`clear_offset`)."""
+    pieces, made = [mesh], []
     for axis, pos in cuts:
         pos = pos + clear_offset(np.concatenate([np.asarray(p.vertices, np.float64)[:, axis] for p in pieces]) - pos)
+        made.append((axis, pos))
         n = np.zeros(3)
         n[axis] = 1.0
         point = np.zeros(3)
@@ -239,8 +259,8 @@ def cut_along(mesh: Mesh, cuts: Sequence[Tuple[int, float]]) -> List[Mesh]:
                 out.append(p)
         pieces = out
     if len(pieces) == 1:
-        return pieces
-    return [_piece(p.vertices, p.faces, mesh, f"{mesh.name}_{k + 1}") for k, p in enumerate(pieces)]
+        return pieces, made
+    return [_piece(p.vertices, p.faces, mesh, f"{mesh.name}_{k + 1}") for k, p in enumerate(pieces)], made
 
 
 def fits(extents: Sequence[float], size: Sequence[float]) -> bool:
@@ -254,8 +274,7 @@ def fit_part(mesh: Mesh, size: Sequence[float], connectors: bool = False, cleara
     pockets across each cut face when ``connectors``. Returns (pieces, info ``{"build_volume_mm",
     "volume_mm3", "cuts": [{"axis", "position_mm"}], "pieces": [{"name", "extents_mm",
     "volume_mm3", "fits"}], "connectors": [...]}``)."""
-    cuts = plan_cuts(mesh, size)
-    pieces = cut_along(mesh, cuts)
+    pieces, cuts = cut_along(mesh, plan_cuts(mesh, size))
     joints = []
     if connectors and len(pieces) > 1:
         pieces, joints = connect_pieces(pieces, clearance, min_wall)
