@@ -20,6 +20,7 @@ from ..core.model.segmentation import Segmentation, as_layers, stack_surface_set
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from . import outputs, preprocess, printtools, stages
+from .fit import rows_for_pieces  # issue 18: cut to fit
 from . import report as reports
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
@@ -73,6 +74,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     res = Result(volume, recipe)
     raw_warnings = _layered_surfaces(volume, recipe, clock, res, pre)
     res.surfaces, tools = printtools.apply_tools(res.surfaces, recipe, clock.sub(0.7))  # issue 18
+    res.cleaning = rows_for_pieces(res.cleaning, res.surfaces)  # issue 18: cut to fit
     res.fixes += tools
     res.preprocess, pre_warnings = preprocess.finish(res.surfaces, pre, recipe, clock.sub(0.7))
     res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16

@@ -36,6 +36,8 @@ AXES = "xyz"
 FIT_MARGIN_MM = 0.01
 #: a cut plane keeps this far (mm) from every vertex (moved by as little as needed)
 VERTEX_CLEARANCE_MM = 0.01
+#: with connectors, pieces are planned this much (mm) smaller: a 5 mm pin stands up to 7.5 mm out
+PIN_ALLOWANCE_MM = 8.0
 #: cap triangles lower than this (mm) are avoided where ear clipping can (float32 flattens them)
 SLIVER_MM = 1e-4
 #: cut positions sampled per axis when planning
@@ -126,16 +128,17 @@ def _cap(v: np.ndarray, below: np.ndarray, n: np.ndarray, name: str) -> np.ndarr
 
 
 def _piece(v: np.ndarray, f: np.ndarray, like: Mesh, name: str = None, first_new: int = None) -> Mesh:
-    """The faces ``f`` as a float32 Mesh. Crossing points (indices from ``first_new``) that
-    float32 makes one (a few µm apart where cut planes meet) are merged and the faces between
-    them dropped; the part's own vertices are kept apart even where they coincide (a pinch)."""
+    """The faces ``f`` as a float32 Mesh. New vertices (indices from ``first_new``: crossing
+    points, drilled rings) that float32 puts on another vertex (a few µm apart where cut planes
+    meet) are merged into it and the faces between them dropped; the part's own vertices are kept
+    apart even where they coincide (a pinch)."""
     v32 = np.asarray(v, np.float32)
     ids = np.arange(len(v32))
     if first_new is not None and first_new < len(v32):
-        w = weld_ids(v32[first_new:])
+        w = weld_ids(v32)
         rep = np.zeros(w.max() + 1, np.int64)
-        rep[w[::-1]] = np.arange(len(w))[::-1]  # the first crossing point at each position
-        ids[first_new:] = first_new + rep[w]
+        rep[w[::-1]] = ids[::-1]  # the first vertex at each position
+        ids[first_new:] = rep[w[first_new:]]
     f = ids[f]
     f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
     vv, ff, _, _ = compact(v32, f)
@@ -197,10 +200,11 @@ def _best_cuts(t: np.ndarray, cost: np.ndarray, lo: float, hi: float, count: int
     return [float(t[i]) for i in reversed(chosen)]
 
 
-def plan_cuts(mesh: Mesh, size: Sequence[float]) -> List[Tuple[int, float]]:
+def plan_cuts(mesh: Mesh, size: Sequence[float], allowance: float = 0.0) -> List[Tuple[int, float]]:
     """Axis-aligned cuts ``[(axis 0..2, position mm)]`` so that every piece of ``mesh`` fits the
     build volume ``size`` (3,) mm in some axis orientation: the fewest cuts, then the least
-    summed cross-section. Raises :class:`AnatomeshError` for a bad size."""
+    summed cross-section; when cut, pieces are planned ``allowance`` mm shorter (room for pins
+    standing out of a cut face). Raises :class:`AnatomeshError` for a bad size."""
     size = np.asarray(size, np.float64)
     if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 2 * FIT_MARGIN_MM):
         raise AnatomeshError(f"the build volume must be three sizes in mm > 0, got {list(np.ravel(size))}")
@@ -209,6 +213,9 @@ def plan_cuts(mesh: Mesh, size: Sequence[float]) -> List[Tuple[int, float]]:
     ext = hi - lo
     if np.all(np.sort(ext) <= np.sort(size)):
         return []
+    if np.any(size - allowance <= 2 * FIT_MARGIN_MM):
+        raise AnatomeshError(f"the build volume {size.tolist()} mm leaves no room for pins of {allowance:g} mm")
+    size = size - allowance
     samples, areas = [], []
     for a in range(3):
         t = lo[a] + ext[a] * (np.arange(1, _SAMPLES) / _SAMPLES)
@@ -274,7 +281,7 @@ def fit_part(mesh: Mesh, size: Sequence[float], connectors: bool = False, cleara
     pockets across each cut face when ``connectors``. Returns (pieces, info ``{"build_volume_mm",
     "volume_mm3", "cuts": [{"axis", "position_mm"}], "pieces": [{"name", "extents_mm",
     "volume_mm3", "fits"}], "connectors": [...]}``)."""
-    pieces, cuts = cut_along(mesh, plan_cuts(mesh, size))
+    pieces, cuts = cut_along(mesh, plan_cuts(mesh, size, PIN_ALLOWANCE_MM if connectors else 0.0))
     joints = []
     if connectors and len(pieces) > 1:
         pieces, joints = connect_pieces(pieces, clearance, min_wall)
@@ -306,7 +313,9 @@ def connect_pieces(pieces: List[Mesh], clearance: float, min_wall: float) -> Tup
         if interface_faces(pieces[i], pieces[j]).size == 0:
             continue
         try:
-            pieces[i], pieces[j], info = add_connectors(pieces[i], pieces[j], clearance, min_wall=min_wall)
+            a, b, info = add_connectors(pieces[i], pieces[j], clearance, min_wall=min_wall)
+            pieces[i] = _piece(a.vertices, a.faces, a, first_new=len(pieces[i].vertices))
+            pieces[j] = _piece(b.vertices, b.faces, b, first_new=len(pieces[j].vertices))
         except AnatomeshError as exc:
             info = {"pair": [pieces[i].name, pieces[j].name], "pins": [], "note": str(exc)}
         joints.append(info)
