@@ -12,7 +12,7 @@ from conftest import SAMPLE
 from helpers.meshes import box, icosphere, torus
 
 from anatomesh.core.export.mesh_files import write_stl
-from anatomesh.core.geometry.polygons import nest, signed_area, triangulate
+from anatomesh.core.geometry.polygons import delaunay_flips, nest, signed_area, triangulate
 from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh, signed_volume
@@ -41,6 +41,16 @@ def test_square_with_a_hole_triangulates_to_its_area():
     areas = [signed_area(pts[t]) for t in tri]
     assert min(areas) > 0 and sum(areas) == pytest.approx(100 - 16)
     assert nest([outer, hole]) == ([False, True], [-1, 0])
+
+
+def test_delaunay_flips_remove_flat_triangles_of_collinear_sides():
+    # a 20 x 14 rectangle with extra points on its sides: a fan from one corner has flat triangles
+    pts = np.array([(0, 0), (3, 0), (7, 0), (12, 0), (20, 0), (20, 5), (20, 9), (20, 14),
+                    (12, 14), (7, 14), (3, 14), (0, 14), (0, 9), (0, 5)], float)
+    fan = np.array([(0, k, k + 1) for k in range(1, len(pts) - 1)])
+    flipped = delaunay_flips(pts, fan, 1e-4)
+    areas = [signed_area(pts[t]) for t in flipped]
+    assert min(areas) > 1 and sum(areas) == pytest.approx(280.0)
 
 
 def test_ball_cut_at_its_equator_gives_two_closed_hemispheres():
