@@ -24,8 +24,6 @@ from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from .recipe import DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
 from .stages import clean
-from .web import page_paths, write_page
-from .web_models import model_of_run
 
 #: entry-point group through which the add-on offers its ``.blend``/PNG writer (pyproject.toml)
 BLENDER_ENTRY_POINTS = "anatomesh.blender"
@@ -68,6 +66,8 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     lods = [out_dir / f"{stem}_lod{i}.glb" for i in range(recipe.lod if recipe.lod > 1 else 0)]
     p = Plan(per_surface, scene, lods, report_path, report_path.parent / RECIPE_FILE, stem)
     if WEB_FORMAT in recipe.formats:  # issue 16: the page's folder
+        from .web import page_paths
+
         p.extra += page_paths(web_dir(recipe), recipe.web_levels)
     if DICOM_FORMAT in recipe.formats:  # segmentations (issue 14): the study the objects join
         from ..core.export.dicom_stl import dicom_reference
@@ -154,6 +154,9 @@ def write_web(result, progress: Optional[Progress] = None) -> Optional[Dict]:
     recipe = result.recipe
     if WEB_FORMAT not in recipe.formats or not result.surfaces:
         return None
+    from .web import write_page  # the page's modules load when asked for
+    from .web_models import model_of_run
+
     model = model_of_run(result, sub(progress, 0.0, 0.6))
     summary = write_page([model], web_dir(recipe), title=result.plan.stem, overwrite=True,  # plan() checked
                          progress=sub(progress, 0.6, 1.0))

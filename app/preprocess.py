@@ -42,7 +42,7 @@ from ..core.preprocess.interpolate import interpolate_labels
 from ..core.preprocess.resample import crop, resample, roi_bounds
 from . import stages
 from .difference import color_differences, compare_sets
-from .preprocess_settings import parse_smooth_volume
+from .preprocess_settings import active, parse_smooth_volume
 from .recipe import Recipe
 
 SCALAR_ONLY = ("resample", "smooth_volume", "fuzzy", "precise")
@@ -68,13 +68,6 @@ class Preprocessing:
         if self.difference is not None:
             out["difference"] = self.difference
         return out
-
-
-def active(recipe: Recipe) -> bool:
-    """Whether the recipe asks for any preprocessing."""
-    return any(v not in (None, False) for v in (
-        recipe.resample, recipe.roi, recipe.smooth_volume, recipe.interpolate, recipe.fuzzy_boundary,
-        recipe.fill_cavities, recipe.close_handles, recipe.fuzzy, recipe.precise))
 
 
 def prepare(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None) -> Tuple[Volume, Optional[Preprocessing]]:

@@ -102,3 +102,10 @@ def check_preprocess(recipe) -> None:
             raise AnatomeshError(f"--fuzzy needs I1 != I2 and N a whole number in 2..32, got {recipe.fuzzy}")
     if recipe.fuzzy is not None and recipe.levels:
         raise AnatomeshError("give --fuzzy I1 I2 [N] or --level, not both (--fuzzy makes its own levels)")
+
+
+def active(recipe) -> bool:
+    """Whether the recipe asks for any preprocessing."""
+    return any(v not in (None, False) for v in (
+        recipe.resample, recipe.roi, recipe.smooth_volume, recipe.interpolate, recipe.fuzzy_boundary,
+        recipe.fill_cavities, recipe.close_handles, recipe.fuzzy, recipe.precise))

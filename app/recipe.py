@@ -39,7 +39,6 @@ from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Union
 
-from ..core.geometry.margins import check_margins
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
@@ -209,6 +208,8 @@ def check_recipe(recipe: Recipe) -> None:
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
     # distance colouring and the web page (issue 16)
+    from ..core.geometry.margins import check_margins  # speed: numba's kernels load on use
+
     recipe.margins = list(check_margins(recipe.margins))
     if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
         raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "

@@ -19,9 +19,9 @@ from ..core.model.errors import AnatomeshError
 from ..core.model.segmentation import Segmentation, as_layers, stack_surface_sets
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from . import outputs, preprocess, printtools, stages
-from .fit import rows_for_pieces  # issue 18: cut to fit
+from . import outputs, stages
 from . import report as reports
+from .preprocess_settings import active as preprocessing_asked
 from .recipe import BLENDER_FORMATS, Recipe, check_recipe
 
 
@@ -73,10 +73,18 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
     volume, pre = _preprocessed(volume, recipe, clock.sub(0.2))
     res = Result(volume, recipe)
     raw_warnings = _layered_surfaces(volume, recipe, clock, res, pre)
-    res.surfaces, tools = printtools.apply_tools(res.surfaces, recipe, clock.sub(0.7))  # issue 18
-    res.cleaning = rows_for_pieces(res.cleaning, res.surfaces)  # issue 18: cut to fit
-    res.fixes += tools
-    res.preprocess, pre_warnings = preprocess.finish(res.surfaces, pre, recipe, clock.sub(0.7))
+    if recipe.connectors or recipe.hollow is not None or recipe.fit:  # issue 18: print tools, cut to fit
+        from .fit import rows_for_pieces
+        from .printtools import apply_tools
+
+        res.surfaces, tools = apply_tools(res.surfaces, recipe, clock.sub(0.7))
+        res.fixes += tools
+        res.cleaning = rows_for_pieces(res.cleaning, res.surfaces)  # issue 18: cut to fit
+    pre_warnings = []
+    if pre is not None or recipe.difference_colors:  # issue 15: measured effects, difference colours
+        from .preprocess import finish
+
+        res.preprocess, pre_warnings = finish(res.surfaces, pre, recipe, clock.sub(0.7))
     res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
@@ -109,14 +117,26 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 def _preprocessed(volume, recipe: Recipe, progress):
     """``(volume, preprocessing or None)``: the recipe's preprocessing (:mod:`.preprocess`) of a
     scan or a one-layer label map."""
-    if not preprocess.active(recipe):
+    if not preprocessing_asked(recipe):
         return volume, None
+    from . import preprocess  # speed: scipy.ndimage and the preprocess room load when asked for
+
     layers = as_layers(volume)
     if len(layers) > 1:
         raise AnatomeshError(f"preprocessing works on one label map or scan; these structures overlap "
                              f"and lie in {len(layers)} layers: mesh them without the preprocessing "
                              "flags", volume.meta.get("source"))
     return preprocess.prepare(layers[0], recipe, progress)
+
+
+def _pre_extract(layer, recipe: Recipe, pre, progress):
+    """The preprocessing's own extraction of ``layer`` (fuzzy boundary, fuzzy shells, precise),
+    or None: the usual one applies."""
+    if pre is None:
+        return None
+    from .preprocess import extract
+
+    return extract(layer, recipe, pre, progress)
 
 
 def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result, pre=None) -> List[str]:
@@ -134,7 +154,7 @@ def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result, pre=
         layer, fixes = stages.prepare_volume(layer, lrecipe)
         res.fixes += fixes
         clock.start("extract", at(0.0), "extracting surfaces" + tag)
-        raw = preprocess.extract(layer, lrecipe, pre, clock.sub(at(0.3)))  # None: the usual way
+        raw = _pre_extract(layer, lrecipe, pre, clock.sub(at(0.3)))  # None: the usual way
         raw = raw if raw is not None else stages.extract(layer, lrecipe, clock.sub(at(0.3)))
         warnings += [w for w in raw.warnings if w not in warnings]
         clock.start("smooth", at(0.3), f"smoothing ({recipe.smooth}){tag}")

@@ -6,10 +6,7 @@ update), reading them back, and one ``from_pydata`` call for comparison. The "at
 (0.38 s on the reference machine, REFERENCE.md) is the cost of the bare attribute calls; the
 target is new_mesh <= 1.2x that floor.
 
-Last, the Smooth panel's live slider end to end (``addon.live.smooth_collection``: Taubin 20
-iterations in float32 with every vertex kept in a 1 mm voxel box around its start, then the
-objects' positions updated), best of 8 with a new strength each time; target <= 150 ms for a
-1M-triangle set.
+The Smooth panel's live slider end to end, on real scans: ``benchmarks/bench_live.py``.
 
 Run: ``python benchmarks/bench_blender_bridge.py [grid]`` (needs the bpy module).
 """
@@ -82,24 +79,6 @@ def main():
     print(f"from_pydata              {t_py:7.3f} s  ({t_py / t_new:.1f}x slower)")
     print(f"set_positions (live)     {t_set:7.3f} s")
     print(f"arrays (read back)       {t_get:7.3f} s")
-    t_live = live_slider(v, f, bridge)
-    print(f"live slider, end to end  {t_live:7.3f} s  (Taubin 20 it + voxel box + update; target <= 0.150 s)")
-
-
-def live_slider(v, f, bridge):
-    """Best time of the live re-smooth of one 1M-triangle object, as the Smooth panel runs it."""
-    from anatomesh.addon import live
-
-    coll = bpy.data.collections.new("live_bench")
-    bpy.context.scene.collection.children.link(coll)
-    obj = bpy.data.objects.new("torus", bridge.new_mesh("torus_live", v, f))
-    obj["anatomesh_value"] = 1
-    coll.objects.link(obj)
-    live.remember(coll, live.ScanSurface(v, f, [(obj.name, np.arange(len(v)))], affine=np.eye(4)))
-    strengths = iter(np.tile(np.linspace(0.45, 0.6, 8), 4))
-    run = lambda: live.smooth_collection(coll, "TAUBIN", 20, float(next(strengths)), 0.0, True)  # noqa: E731
-    run()  # compile / warm up
-    return best(run, repeat=8)[0]
 
 
 if __name__ == "__main__":

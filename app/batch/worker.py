@@ -20,7 +20,6 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ... import __version__
 from ...core.export.snapshot import render, write_png
 from ...core.model.errors import AnatomeshError
 from ...core.model.mesh import Mesh
@@ -108,7 +107,7 @@ def stamp_report(report: Dict, folder: Path, task: StudyTask, inputs, seconds: T
     report["recipe"] = dict(report.get("recipe", {}), out_dir=str(Path(task.out, task.id).resolve()))
     report["files"] = dict(report.get("files", {}), thumbnail=state.THUMBNAIL)
     report["batch"] = {"study": task.id, "input": str(Path(task.path).resolve()), "inputs": inputs,
-                       "recipe_sha256": task.recipe_sha256, "anatomesh": __version__,
+                       "recipe_sha256": task.recipe_sha256, "anatomesh": _version(),
                        "host": platform.node(), "seconds": round(seconds[0], 3),
                        "run_seconds": round(seconds[1], 3), "worker_peak_mb": peak_memory_mb()}
     (folder / state.REPORT).write_text(json.dumps(report, indent=2, default=json_default))
@@ -136,3 +135,13 @@ def one_line(exc: BaseException) -> str:
     frames = traceback.extract_tb(exc.__traceback__)
     where = f" (at {Path(frames[-1].filename).name}:{frames[-1].lineno})" if frames else ""
     return f"{type(exc).__name__}: {text}{where}" if text else f"{type(exc).__name__}{where}"
+
+
+def _version() -> str:
+    """The installed Anatomesh version (pip's metadata), "unknown" for a bare checkout."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("anatomesh")
+    except PackageNotFoundError:
+        return "unknown"

@@ -12,7 +12,6 @@ import signal
 import sys
 import time
 
-from ..batch import run
 from .common import EXIT_CHECK_FAILED, EXIT_OK
 
 
@@ -40,6 +39,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_batch(args) -> int:
+    from ..batch import run  # speed: the batch modules load for this command only
+
     previous = signal.signal(signal.SIGTERM, _interrupt)  # `kill` stops the workers as Ctrl-C does
     bar = BatchBar()
     try:

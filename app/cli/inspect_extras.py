@@ -8,13 +8,8 @@ import argparse
 from pathlib import Path
 from typing import Dict
 
-from ...core.export.common import refuse_overwrite
-from ...core.export.snapshot import write_png
-from ...core.io.describe import looks_like_hounsfield
 from ...core.model.errors import AnatomeshError
-from ..gallery import parse_levels, preset_levels
 from ..hints import hints
-from ..histogram_picture import histogram_picture
 
 
 def add_extra_args(p: argparse.ArgumentParser) -> None:
@@ -30,22 +25,35 @@ def extras(volume, facts: Dict, args) -> Dict:
     """``{"hints": [...]}`` and, with ``--histogram``, ``"histogram_png"`` (the picture written)."""
     out: Dict = {"hints": hints(volume)}
     if args.histogram:
-        path = Path(args.histogram)
-        if path.suffix.lower() != ".png":
-            raise AnatomeshError("--histogram must name a .png file", path)
-        if volume.is_label_map:
-            raise AnatomeshError("--histogram draws the values of a scalar scan; this is a label map",
-                                 volume.meta.get("source"))
-        refuse_overwrite([path], args.overwrite)
-        levels = parse_levels(args.level) if args.level else preset_levels(volume)
-        data = volume.data.ravel(order="K")
-        sample = data[:: max(1, data.size // 4_000_000)]
-        title = f"{Path(str(facts.get('path', 'scan'))).name}  {facts['modality']}  " \
-                f"{'x'.join(str(s) for s in facts['shape'])}"
-        picture, info = histogram_picture(sample, looks_like_hounsfield(sample),
-                                          [(n, v) for n, v, _ in levels], title)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_png(picture, path)
-        out["histogram_png"] = str(path)
-        out["histogram_levels"] = info["levels"]
+        out.update(_histogram_png(volume, facts, args))
+    return out
+
+
+def _histogram_png(volume, facts: Dict, args) -> Dict:
+    """Write ``--histogram``'s picture; ``{"histogram_png", "histogram_levels"}``."""
+    from ...core.export.common import refuse_overwrite  # speed: loaded when asked for
+    from ...core.export.snapshot import write_png
+    from ...core.io.describe import looks_like_hounsfield
+    from ..gallery import parse_levels, preset_levels
+    from ..histogram_picture import histogram_picture
+
+    out: Dict = {}
+    path = Path(args.histogram)
+    if path.suffix.lower() != ".png":
+        raise AnatomeshError("--histogram must name a .png file", path)
+    if volume.is_label_map:
+        raise AnatomeshError("--histogram draws the values of a scalar scan; this is a label map",
+                             volume.meta.get("source"))
+    refuse_overwrite([path], args.overwrite)
+    levels = parse_levels(args.level) if args.level else preset_levels(volume)
+    data = volume.data.ravel(order="K")
+    sample = data[:: max(1, data.size // 4_000_000)]
+    title = f"{Path(str(facts.get('path', 'scan'))).name}  {facts['modality']}  " \
+            f"{'x'.join(str(s) for s in facts['shape'])}"
+    picture, info = histogram_picture(sample, looks_like_hounsfield(sample),
+                                      [(n, v) for n, v, _ in levels], title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_png(picture, path)
+    out["histogram_png"] = str(path)
+    out["histogram_levels"] = info["levels"]
     return out

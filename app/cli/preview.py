@@ -6,11 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ...core.export.common import refuse_overwrite
-from ...core.export.snapshot import VIEWS, write_png
-from ...core.io import load
 from ...core.model.errors import AnatomeshError
-from ..gallery import gallery, parse_levels
 from .common import EXIT_OK, TerminalProgress, add_input_args, path_arg
 
 
@@ -21,7 +17,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--levels", nargs="+", metavar="LEVEL",
                    help="VALUE or NAME:VALUE items, e.g. skin:-500 bone:300 (default: CT presets in "
                         "HU, else levels between the histogram's peaks)")
-    p.add_argument("--view", default="anterior", help=f"view: {', '.join(VIEWS)} (default anterior)")
+    p.add_argument("--view", default="anterior", help="the side the pictures look from: anterior (default), posterior, left, right, "
+                                                     "superior, inferior")
     p.add_argument("--size", default="256", help="pixels per picture (default 256)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing PNG")
     p.set_defaults(func=cmd_preview)
@@ -29,6 +26,11 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_preview(args) -> int:
+    from ...core.export.common import refuse_overwrite  # speed: loaded for this command only
+    from ...core.export.snapshot import VIEWS, write_png
+    from ...core.io import load
+    from ..gallery import gallery, parse_levels
+
     out = Path(args.out)
     if out.suffix.lower() != ".png":
         raise AnatomeshError("--out must name a .png file", out)

@@ -11,8 +11,6 @@ import argparse
 from pathlib import Path
 
 from ...core.model.errors import AnatomeshError
-from ..web import write_page
-from ..web_models import models_of_inputs
 from .common import EXIT_OK, TerminalProgress, split_list, write_json
 
 
@@ -52,6 +50,9 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_web(args) -> int:
+    from ..web import write_page  # speed: the page's modules load for this command only
+    from ..web_models import models_of_inputs
+
     models = models_of_inputs(args.inputs, n_levels=2 if args.web_levels is None else args.web_levels,
                               distance_to=args.distance_to, margins=margins_arg(args.margins),
                               progress=TerminalProgress("levels"))
