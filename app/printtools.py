@@ -1,6 +1,7 @@
 """The printable-part tools of a run, after the surfaces are final and before they are written:
 connectors between touching parts (:func:`anatomesh.core.printing.connectors.add_connectors`),
-then hollowing with drain holes (:func:`anatomesh.core.printing.hollow.hollow`). Each tool adds
+then hollowing with drain holes (:func:`anatomesh.core.printing.hollow.hollow`), then cutting
+to fit the build volume (:mod:`.fit`). Each tool adds
 entries to the report's ``fixes`` (what it did: volumes, counts, places)."""
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from ..core.model.progress import Progress, report
 from ..core.printing.connectors import add_connectors
 from ..core.printing.hollow import hollow
 from ..core.printing.profiles import resolve_profile
+from .fit import fit_parts  # issue 18: cut to fit
 
 
 def apply_tools(meshes: List[Mesh], recipe, progress: Optional[Progress] = None) -> Tuple[List[Mesh], List[Dict]]:
@@ -26,14 +28,22 @@ def apply_tools(meshes: List[Mesh], recipe, progress: Optional[Progress] = None)
                                                       min_wall=prof["min_wall"])
         fixes.append({"fix": "connectors", **info})
     if recipe.hollow is None:
-        return meshes, fixes
+        return _fit(meshes, fixes, recipe, progress)  # issue 18: cut to fit
     out = []
     for k, m in enumerate(meshes):
         report(progress, k / max(len(meshes), 1), f"hollowing {m.name}")
         hm, info = hollow_part(m, recipe.hollow, recipe.drain_holes, recipe.drain_diameter, recipe.profile)
         out.append(hm)
         fixes.append({"fix": "hollow", "part": m.name, **info})
-    return out, fixes
+    return _fit(out, fixes, recipe, progress)  # issue 18: cut to fit
+
+
+def _fit(meshes: List[Mesh], fixes: List[Dict], recipe, progress) -> Tuple[List[Mesh], List[Dict]]:
+    """Issue 18: the parts cut to fit the recipe's build volume ``fit`` (when set), last."""
+    if not recipe.fit:
+        return meshes, fixes
+    meshes, more = fit_parts(meshes, recipe.fit, recipe.fit_connectors, recipe.profile, recipe.min_wall, progress)
+    return meshes, fixes + more
 
 
 def hollow_part(mesh: Mesh, wall: float, holes: int = 2, diameter: Optional[float] = None,

@@ -43,6 +43,7 @@ from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
 from .preprocess_settings import KEYS as PREPROCESS_KEYS, check_preprocess  # preprocessing (issue 15)
+from .fit import check_fit  # issue 18: cut to fit
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept
@@ -89,6 +90,8 @@ class Recipe:
     ``drain_diameter`` mm (default: the profile's) at its lowest points (:mod:`anatomesh.core.printing.hollow`);
     ``connectors`` — pairs of touching labels (names/values) that get pins and pockets across
     their interface, clearance from the profile (:mod:`anatomesh.core.printing.connectors`).
+    ``fit`` — the printer's build volume [x, y, z] mm: parts too big are cut into pieces that fit
+    (``<part>_1``, ...), with pins across the cuts when ``fit_connectors`` (:mod:`anatomesh.app.fit`).
     ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
     ``grid``: the grid structures of a mask folder are meshed on (a mask name or "image"; default the
     finest), or for DICOM SEG/RTSTRUCT "image" (the referenced series) or "native" (the object's own
@@ -139,6 +142,9 @@ class Recipe:
     drain_holes: int = 2
     drain_diameter: Optional[float] = None
     connectors: List[List[Union[int, str]]] = field(default_factory=list)
+    # issue 18: cut to fit the build volume [x, y, z] mm, pins across the cuts
+    fit: Optional[List[float]] = None
+    fit_connectors: bool = False
     formats: List[str] = field(default_factory=lambda: ["stl"])
     render_samples: int = 32
     render_size: List[int] = field(default_factory=lambda: [960, 540])
@@ -198,6 +204,7 @@ def check_recipe(recipe: Recipe) -> None:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
     if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):  # issue 18
         raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
+    recipe.fit = check_fit(recipe.fit)  # issue 18: cut to fit
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
     # distance colouring and the web page (issue 16)
@@ -228,6 +235,8 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
+# issue 18: cut to fit
+SECTIONS["check"].update(fit_mm="fit", fit_connectors="fit_connectors")
 # distance colouring and the web page (issue 16)
 SECTIONS["distance"] = {"to": "distance_to", "margins_mm": "margins"}
 SECTIONS["web"] = {"levels": "web_levels"}
@@ -245,7 +254,8 @@ _NOTES = {
     "decimation": "ratio of faces kept or target_faces, and/or max_error_mm (a cap with the others)",
     "check": "print checks: profile fdm or resin; min_wall_mm / min_gap_mm override it; fixes: fuse "
              "(groups of labels), thicken, clearance_mm; tools: hollow_mm (wall), drain_holes, "
-             "drain_diameter_mm, connectors (label pairs)",
+             "drain_diameter_mm, connectors (label pairs), fit_mm (build volume [x, y, z]: cut parts to fit), "
+             "fit_connectors (pins across the cuts)",
     "output": "formats: stl, ply, obj, 3mf, dicom, glb, blend, png, web; lod: GLB levels of detail (0: none)",
     "distance": "colour every surface by its distance (mm) to the structure `to` (name or value): "
                 "within margins_mm red, yellow, green",
@@ -318,6 +328,10 @@ _TYPES = {
     "precise": (lambda v: isinstance(v, bool), "true or false"),
     "difference_colors": (lambda v: isinstance(v, bool), "true or false"),
 }
+# issue 18: cut to fit
+_TYPES["fit"] = (lambda v: isinstance(v, list) and len(v) == 3 and all(_is_number(x) for x in v),
+                 "the build volume [x, y, z] in mm")
+_TYPES["fit_connectors"] = (lambda v: isinstance(v, bool), "true or false")
 # distance colouring and the web page (issue 16)
 _TYPES["distance_to"] = (lambda v: isinstance(v, str) or _is_int(v), "a label name or value")
 _TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
@@ -380,7 +394,7 @@ def recipe_from_text(text: str, base=None, source=None) -> Recipe:
                 raise AnatomeshError(f"[{section}] {key} must be {allowed}, got {value!r}", source)
             if name in _FLOAT_FIELDS:
                 value = float(value)
-            if name in ("levels", "margins"):
+            if name in ("levels", "margins", "fit"):
                 value = [float(x) for x in value]
             if name == "series":
                 value = str(value)

@@ -101,15 +101,18 @@ def run(recipe: Recipe, progress: Optional[Progress] = None) -> Result:
 
 
 def _finish_surfaces(res: Result, pre, clock: "_Clock") -> List[str]:
-    """After the shells: the print tools (hollowing, connectors), the preprocessing's measured
-    effects and difference colours, the distance colours — each only when the recipe asks.
+    """After the shells: the print tools (hollowing, connectors, cut to fit), the
+    preprocessing's measured effects and difference colours, the distance colours — each only
+    when the recipe asks.
     Fills ``res``; returns the preprocessing's warnings."""
     recipe = res.recipe
-    if recipe.connectors or recipe.hollow is not None:  # issue 18: print tools
+    if recipe.connectors or recipe.hollow is not None or recipe.fit:  # issue 18: print tools, cut to fit
+        from .fit import rows_for_pieces
         from .printtools import apply_tools
 
         res.surfaces, tools = apply_tools(res.surfaces, recipe, clock.sub(0.7))
         res.fixes += tools
+        res.cleaning = rows_for_pieces(res.cleaning, res.surfaces)
     warnings: List[str] = []
     if pre is not None or recipe.difference_colors:  # issue 15
         from .preprocess import finish

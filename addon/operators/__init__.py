@@ -21,3 +21,5 @@ CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOM
 # the web page and distance colours (issue 16)
 CLASSES += (web.ANATOMESH_OT_export_web, web.ANATOMESH_OT_paint_margins)
 CLASSES = CLASSES + preprocess.CLASSES  # issue 15
+from . import fit  # issue 18: cut to fit
+CLASSES = CLASSES + (fit.ANATOMESH_OT_print_fit,)

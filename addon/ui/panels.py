@@ -254,6 +254,13 @@ class ANATOMESH_PT_print(_Base, Panel):
         op.min_wall = s.min_wall
         op = row.operator("anatomesh.paint", text="Gaps", icon="MOD_LENGTH")
         op.mode = "GAP"
+        # issue 18: cut to fit
+        fit = context.scene.anatomesh_fit
+        col = self.layout.column(align=True)
+        col.prop(fit, "size", text="")
+        col.prop(fit, "connectors")
+        op = col.operator("anatomesh.print_fit", icon="MOD_BOOLEAN")
+        op.size, op.connectors = tuple(fit.size), fit.connectors
 
 
 class ANATOMESH_PT_recipe(_Base, Panel):

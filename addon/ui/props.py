@@ -315,3 +315,18 @@ class ANATOMESH_PG_preprocess(PropertyGroup):
 
 CLASSES = CLASSES + (ANATOMESH_PG_preprocess,)
 _POINTERS = _POINTERS + (("Scene", "anatomesh_preprocess", ANATOMESH_PG_preprocess),)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 18: cut to fit: Scene.anatomesh_fit (the Print panel's Cut to Fit settings)
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_PG_fit(PropertyGroup):
+    """The printer's build volume and whether pins go across the cuts."""
+    size: FloatVectorProperty(name="Build Volume", size=3, default=(180.0, 180.0, 180.0), min=1.0,
+                              soft_max=1000.0, unit="LENGTH", description="The printer's build volume X, Y, Z (mm)")
+    connectors: BoolProperty(name="Pins Across Cuts", default=False,
+                             description="Pins on one piece and pockets in the other across each cut")
+
+
+CLASSES = CLASSES + (ANATOMESH_PG_fit,)
+_POINTERS = _POINTERS + (("Scene", "anatomesh_fit", ANATOMESH_PG_fit),)

@@ -16,7 +16,8 @@ from typing import Dict, List
 
 from ...core.model.errors import AnatomeshError
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
-from .mesh import hollow_args
+from .mesh import fit_args, hollow_args
+from ..fit import fit_arg, summary as fit_summary  # issue 18: cut to fit
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
@@ -40,6 +41,7 @@ def add_parser(subs) -> argparse.ArgumentParser:
                    help="fix: pull touching parts apart by this clearance (each side of a shared "
                         "interface moves back by half); needs --out")
     hollow_args(p)  # issue 18: print tools
+    fit_args(p)  # issue 18: cut to fit
     p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
                                                 "parts.3mf (with a fix or tool option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
@@ -52,17 +54,18 @@ def cmd_check(args) -> int:
     from ...core.printing.checks import check_parts
     from ..check import read_parts
 
-    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow))
+    fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow, args.fit))
     if fixing and not args.out:
-        raise AnatomeshError("--remove-tiny/--close-holes/--separate/--hollow write fixed files: add --out DIR")
+        raise AnatomeshError("--remove-tiny/--close-holes/--separate/--hollow/--fit write fixed files: add --out DIR")
     if args.out and not fixing:
         raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES, "
-                             "--separate MM and/or --hollow WALL_MM")
+                             "--separate MM, --hollow WALL_MM and/or --fit X,Y,Z")
+    fit = None if args.fit is None else fit_arg(args.fit)  # issue 18: bad sizes exit 2 early
     prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     meshes = read_parts(args.path)
     fixes = []
     if fixing:
-        meshes, fixes = _write_fixed(meshes, args)
+        meshes, fixes = _write_fixed(meshes, args, fit)
     rep = check_parts(meshes, prof, progress=TerminalProgress("checking"))
     rep["profile"]["name"] = args.profile if (args.min_wall is None and args.min_gap is None) \
         else f"{args.profile} (overridden)"
@@ -72,7 +75,10 @@ def cmd_check(args) -> int:
     if args.report:
         write_json(rep, args.report)
     for f in fixes:
-        print(f"fixed {f['name']}: {f['summary']} -> {f['file']}")
+        if "file" in f:  # the per-part fit entries (issue 18) have their own line
+            print(f"fixed {f['name']}: {f['summary']} -> {f['file']}")
+        else:
+            print(f"fit {fit_summary(f)}")
     for line in summary_lines(rep):
         print(line)
     if args.report:
@@ -80,12 +86,14 @@ def cmd_check(args) -> int:
     return EXIT_OK if rep["passed"] else EXIT_CHECK_FAILED
 
 
-def _write_fixed(meshes, args):
-    """Fix the parts; write each as STL and all in ``parts.3mf`` into ``args.out``."""
+def _write_fixed(meshes, args, fit=None):
+    """Fix the parts (and cut them to ``fit`` the build volume, issue 18); write each as STL and
+    all in ``parts.3mf`` into ``args.out``."""
     from ...core.export.common import refuse_overwrite, unique_stems
     from ...core.export.mesh_files import write_stl
     from ...core.export.threemf import write_3mf
     from ..check import fix_parts
+    from ..fit import PART_INDEX, fit_parts  # issue 18
     from ..printtools import hollow_part
 
     out = Path(args.out)
@@ -100,11 +108,26 @@ def _write_fixed(meshes, args):
             log[k]["summary"] = "; ".join(x for x in (log[k]["summary"].replace("nothing to fix", ""),
                                                       _hollow_text(info)) if x)
             log[k]["hollow"] = info
+    fit_entries = []
+    if fit is not None:  # issue 18: cut to fit; one file per piece
+        parts = [m.name for m in fixed]
+        fixed, fit_entries = fit_parts(fixed, fit, bool(args.fit_connectors), args.profile, args.min_wall)
+        log = [_piece_log(log[m.meta[PART_INDEX]], parts[m.meta[PART_INDEX]], m.name) for m in fixed]
+        plans = [out / f"{s}.stl" for s in unique_stems([m.name for m in fixed])]
+        refuse_overwrite(plans, args.overwrite, "pass --overwrite or choose another --out folder")
     for m, path, entry in zip(fixed, plans, log):
         write_stl(m, path)
         entry["file"] = str(path)
     write_3mf(fixed, combined, title="fixed parts")
-    return fixed, log
+    return fixed, log + fit_entries
+
+
+def _piece_log(entry: Dict, part: str, name: str) -> Dict:
+    """Issue 18: a piece's log entry, from its part's."""
+    if name == part:
+        return dict(entry)
+    text = "; ".join(x for x in (entry["summary"].replace("nothing to fix", ""), f"cut from {part} to fit") if x)
+    return dict(entry, name=name, summary=text)
 
 
 def _hollow_text(info: Dict) -> str:

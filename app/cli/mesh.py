@@ -10,6 +10,7 @@ import argparse
 import sys
 
 from ...core.model.errors import AnatomeshError
+from ..fit import fit_arg  # issue 18: cut to fit
 from ..recipe import FORMATS, Recipe, load_recipe
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
@@ -107,6 +108,7 @@ def _print_args(m) -> None:
                         "so separately printed parts fit together")
     hollow_args(m)
     connector_args(m)
+    fit_args(m)  # issue 18: cut to fit
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
@@ -122,6 +124,16 @@ def hollow_args(m) -> None:
     m.add_argument("--drain-holes", type=int, metavar="N", help="drain holes per cavity (default 2)")
     m.add_argument("--drain-diameter", type=float, metavar="MM",
                    help="drain hole diameter (default: the profile's, fdm 4 mm, resin 3 mm)")
+
+
+def fit_args(m) -> None:
+    """Issue 18: ``--fit X,Y,Z [--fit-connectors]`` (mesh and check)."""
+    m.add_argument("--fit", metavar="X,Y,Z",
+                   help="print tool: cut every part too big for the printer's build volume (mm) into "
+                        "pieces that fit, <part>_1, <part>_2, ... (fewest axis-aligned cuts, where the "
+                        "cross-section is smallest)")
+    m.add_argument("--fit-connectors", action="store_true", default=None,
+                   help="with --fit: pins on one piece and pockets in the other across each cut")
 
 
 def connector_args(m) -> None:
@@ -155,6 +167,10 @@ def recipe_from_args(args) -> Recipe:
         recipe.fuse = [split_list(g) for g in args.fuse]
     if args.connectors:  # issue 18
         recipe.connectors = [_pair(g) for g in args.connectors]
+    if args.fit is not None:  # issue 18: cut to fit
+        recipe.fit = fit_arg(args.fit)
+    if args.fit_connectors:
+        recipe.fit_connectors = True
     targets = ("decimate", "target_faces", "max_error")
     if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
         for t in targets:

@@ -32,6 +32,7 @@ from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
 from ..model.segmentation import RoiContours, in_plane_axes
 from ..model.volume import space_flip
+from ..geometry import polygons
 from . import _contours_kernels as K
 
 
@@ -104,26 +105,13 @@ def _slab(loop: _Loop, verts, half: np.ndarray, first: int):
     return [below, above, top, bottom], new
 
 
-def _signed_area(uv: np.ndarray) -> float:
-    x, y = uv[:, 0], uv[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
-def _inside(point: np.ndarray, loop: _Loop) -> bool:
-    return bool(K.points_in_polygon(point[:1, 0].copy(), point[:1, 1].copy(),
-                                    np.ascontiguousarray(loop.uv[:, 0]), np.ascontiguousarray(loop.uv[:, 1]))[0])
-
-
 def _nest(loops: List[_Loop]) -> None:
     """Holes (inside an odd number of the plane's contours) and parents; orient outer boundaries
     counter-clockwise and holes clockwise about the normal."""
-    areas = [abs(_signed_area(lp.uv)) for lp in loops]
-    for k, lp in enumerate(loops):
-        around = [o for o, other in enumerate(loops) if o != k and areas[o] > areas[k]
-                  and _inside(lp.uv[:1], other)]
-        lp.hole = len(around) % 2 == 1
-        lp.parent = min(around, key=lambda o: areas[o]) if around else -1
-        if (_signed_area(lp.uv) > 0) == lp.hole:
+    holes, parents = polygons.nest([lp.uv for lp in loops])
+    for lp, hole, parent in zip(loops, holes, parents):
+        lp.hole, lp.parent = hole, parent
+        if (polygons.signed_area(lp.uv) > 0) == lp.hole:
             lp.ids, lp.uv = lp.ids[::-1].copy(), lp.uv[::-1].copy()
 
 
@@ -132,9 +120,7 @@ def _overlap(a: _Loop, b: _Loop) -> bool:
     if np.any(hi < lo):
         return False
     for p, q in ((a, b), (b, a)):
-        hit = K.points_in_polygon(np.ascontiguousarray(p.uv[:, 0]), np.ascontiguousarray(p.uv[:, 1]),
-                                  np.ascontiguousarray(q.uv[:, 0]), np.ascontiguousarray(q.uv[:, 1]))
-        if hit.any():
+        if polygons.points_in_polygon(p.uv, q.uv).any():
             return True
     return False
 
@@ -256,20 +242,6 @@ def _caps(loops: List[_Loop], verts, open_loops: List[int], top: bool) -> List[n
 
 
 def _triangulate(outer: _Loop, holes: List[_Loop]) -> np.ndarray:
-    """Ear clipping of a contour with holes bridged in (each hole's rightmost point joined to the
-    closest visible point of the polygon so far)."""
-    ids, uv = outer.ids, outer.uv
-    for h in sorted(holes, key=lambda h: -h.uv[:, 0].max()):
-        m = int(np.argmax(h.uv[:, 0]))
-        order = np.argsort(np.linalg.norm(uv - h.uv[m], axis=1))
-        k = int(order[0])
-        for cand in order[:64]:
-            if not K.segment_hits_polygon(h.uv[m, 0], h.uv[m, 1], uv[cand, 0], uv[cand, 1],
-                                          np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])):
-                k = int(cand)
-                break
-        hid, huv = np.roll(h.ids, -m), np.roll(h.uv, -m, axis=0)
-        ids = np.concatenate([ids[:k + 1], hid, hid[:1], ids[k:]])
-        uv = np.concatenate([uv[:k + 1], huv, huv[:1], uv[k:]])
-    local = K.ear_clip(np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1]))
-    return ids[local]
+    """Ear clipping of a contour with its holes (:func:`anatomesh.core.geometry.polygons.triangulate`)."""
+    ids = np.concatenate([outer.ids] + [h.ids for h in holes])
+    return ids[polygons.triangulate(outer.uv, [h.uv for h in holes])]
