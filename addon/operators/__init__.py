@@ -21,3 +21,9 @@ CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOM
 # the web page and distance colours (issue 16)
 CLASSES += (web.ANATOMESH_OT_export_web, web.ANATOMESH_OT_paint_margins)
 CLASSES = CLASSES + preprocess.CLASSES  # issue 15
+# issue 18: print tools
+from . import print_tools  # noqa: E402
+CLASSES = CLASSES + print_tools.CLASSES
+# issue 18: edit-mode tools
+from . import edit_tools  # noqa: E402
+CLASSES = CLASSES + edit_tools.CLASSES
