@@ -164,6 +164,7 @@ def reextract_fixed(context, coll, fuse: Sequence[Sequence[int]] = (), thicken: 
     if smoothing["smooth_method"] != "NONE":
         live.smooth_collection(new)
     for o in scene.surface_objects(new):
+        o.name = o.data.name = str(o["anatomesh_name"])  # the old objects are gone: their names are free
         _keep_material(o, materials.get(int(o["anatomesh_value"])))
         for fix in fixes:
             record(o, fix)

@@ -29,6 +29,15 @@ def _profile(context):
     return s.profile.lower(), s.min_wall
 
 
+def _selected_labels(context):
+    """The selected surfaces' label values: the active one first (its value, name first and
+    colour are kept, as the first label of ``--fuse``), then by value."""
+    objs = print_objects(context, True)
+    act = context.active_object
+    first = [int(act["anatomesh_value"])] if act in objs else []
+    return first + sorted({int(o["anatomesh_value"]) for o in objs} - set(first))
+
+
 def _scan_or_fail(context):
     coll = active_scan(context)
     if coll is None:
@@ -39,7 +48,7 @@ def _scan_or_fail(context):
 
 
 class ANATOMESH_OT_print_fuse(Operator):
-    """Print the selected surfaces as one solid: merge their labels in the label map and extract the scan again"""
+    """Print the selected surfaces as one solid (the active one's name first and colour): merge their labels in the label map and extract the scan again"""
 
     bl_idname = "anatomesh.print_fuse"
     bl_label = "Fuse"
@@ -51,8 +60,7 @@ class ANATOMESH_OT_print_fuse(Operator):
     @guarded
     def execute(self, context):
         coll = _scan_or_fail(context)
-        group = parse_list(self.labels) if self.labels.strip() else \
-            [int(o["anatomesh_value"]) for o in print_objects(context, True)]
+        group = parse_list(self.labels) if self.labels.strip() else _selected_labels(context)
         if len(group) < 2:
             self.report({"WARNING"}, "Fuse: select two or more surfaces of the scan (or give labels)")
             return {"CANCELLED"}
