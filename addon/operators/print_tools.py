@@ -19,9 +19,13 @@ from __future__ import annotations
 from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 
-from .. import print_tools
+from .. import print_tools, warmup
 from ..common import ProgressReporter, active_scan, guarded, parse_list
 from ..printing import print_objects
+
+
+#: the background warm-up step compiling the print fixes' kernels
+FIXES_STEP = "print checks and fixes"
 
 
 def _profile(context):
@@ -64,6 +68,9 @@ class ANATOMESH_OT_print_fuse(Operator):
         if len(group) < 2:
             self.report({"WARNING"}, "Fuse: select two or more surfaces of the scan (or give labels)")
             return {"CANCELLED"}
+        self.labels = ",".join(str(x) for x in group)  # a deferred run fuses these, whatever is selected then
+        if warmup.defer(self, "smoothing"):  # speed (first run): again when the kernels are ready
+            return {"FINISHED"}
         profile, wall = _profile(context)
         with ProgressReporter(context, "fusing") as progress:
             new, fixes = print_tools.reextract_fixed(context, coll, fuse=[group], profile=profile,
@@ -84,6 +91,8 @@ class ANATOMESH_OT_print_thicken(Operator):
     @guarded
     def execute(self, context):
         coll = _scan_or_fail(context)
+        if warmup.defer(self, "smoothing"):  # speed (first run): again when the kernels are ready
+            return {"FINISHED"}
         profile, wall = _profile(context)
         with ProgressReporter(context, "thickening") as progress:
             new, fixes = print_tools.reextract_fixed(context, coll, thicken=True, profile=profile,
@@ -113,6 +122,8 @@ class ANATOMESH_OT_print_clearance(Operator):
 
         objs = print_objects(context, True) if self.selected_only else \
             scene.surface_objects(_scan_or_fail(context))
+        if warmup.defer(self, FIXES_STEP):
+            return {"FINISHED"}
         entry = print_tools.separate_objects(objs, self.clearance)
         self.report({"INFO"}, f"Clearance {self.clearance:g} mm: {entry['moved_vertices']:,} vertices moved, "
                               f"{len(entry['pairs'])} pair(s) apart")
@@ -139,6 +150,8 @@ class ANATOMESH_OT_print_hollow(Operator):
         if not objs:
             self.report({"WARNING"}, "Hollow: select the surfaces to hollow")
             return {"CANCELLED"}
+        if warmup.defer(self, FIXES_STEP):
+            return {"FINISHED"}
         profile, _ = _profile(context)
         lines = []
         with ProgressReporter(context, "hollowing") as progress:
@@ -168,6 +181,8 @@ class ANATOMESH_OT_print_connectors(Operator):
             return {"CANCELLED"}
         a = active if active in objs else objs[0]
         b = objs[1] if a is objs[0] else objs[0]
+        if warmup.defer(self, FIXES_STEP):
+            return {"FINISHED"}
         profile, wall = _profile(context)
         e = print_tools.connect_objects(a, b, profile, wall)
         pins = ", ".join(f"{p['diameter_mm']:g} mm" for p in e["pins"])
