@@ -21,7 +21,8 @@ function on the mesh's triangles), and the fixes built on them.
                                   deviation (:class:`~anatomesh.core.smooth.constraints.Constraint`)
 ================================  ===============================================================
 
-Positions are the mesh's own coordinates (mm in an Anatomesh scene); volumes mm³. Ngons are
+Measures are taken in world coordinates when the object's transform is given (``matrix``),
+else in the mesh's own (mm in an Anatomesh scene); volumes mm³. Ngons are
 measured through their triangulation (``calc_loop_triangles``); the results name bmesh indices.
 """
 from __future__ import annotations
@@ -40,13 +41,17 @@ PROBLEM_ITEMS = (
 )
 
 
-def mesh_arrays(bm) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mesh_arrays(bm, matrix=None) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(vertices (N, 3) float64 mm, triangles (T, 3) int64, face of each triangle (T,) int64)``
-    of a bmesh, indices as ``bm.verts`` / ``bm.faces`` (index tables refreshed)."""
+    of a bmesh, indices as ``bm.verts`` / ``bm.faces`` (index tables refreshed); ``matrix``
+    (4, 4): the object's transform, to measure in world coordinates (None: the mesh's own)."""
     bm.verts.index_update()
     bm.faces.index_update()
     bm.edges.index_update()
     v = np.array([x.co for x in bm.verts], np.float64).reshape(-1, 3)
+    if matrix is not None:
+        m = np.asarray(matrix, np.float64)
+        v = v @ m[:3, :3].T + m[:3, 3]
     tris = bm.calc_loop_triangles()
     f = np.array([[lp.vert.index for lp in t] for t in tris], np.int64).reshape(-1, 3)
     owner = np.array([t[0].face.index for t in tris], np.int64)
@@ -80,22 +85,22 @@ def boundary_edges(bm) -> List[int]:
     return _edges_of_pairs(bm, edges[count == 1])
 
 
-def intersecting_faces(bm) -> List[int]:
+def intersecting_faces(bm, matrix=None) -> List[int]:
     """Indices of the faces crossing another face (faces sharing a vertex do not count)."""
     from ..core.geometry.intersections import self_intersections
 
-    v, f, owner = mesh_arrays(bm)
+    v, f, owner = mesh_arrays(bm, matrix)
     if not len(f):
         return []
     pairs = self_intersections(v, f)
     return sorted(set(owner[np.unique(pairs.ravel())].tolist()))
 
 
-def thin_faces(bm, min_wall: float) -> List[int]:
+def thin_faces(bm, min_wall: float, matrix=None) -> List[int]:
     """Indices of the faces with a corner where the wall is thinner than ``min_wall`` mm."""
     from ..core.printing.thickness import wall_thickness
 
-    v, f, owner = mesh_arrays(bm)
+    v, f, owner = mesh_arrays(bm, matrix)
     if not len(f):
         return []
     t = wall_thickness(v, f, max_thickness=5.0 * min_wall)
@@ -103,16 +108,16 @@ def thin_faces(bm, min_wall: float) -> List[int]:
     return sorted(set(owner[thin].tolist()))
 
 
-def problem_elements(bm, kind: str, min_wall: float = 0.8) -> Tuple[str, List[int]]:
+def problem_elements(bm, kind: str, min_wall: float = 0.8, matrix=None) -> Tuple[str, List[int]]:
     """``("EDGE" | "FACE", indices)`` of the problem ``kind`` (see :data:`PROBLEM_ITEMS`)."""
     if kind == "NON_MANIFOLD":
         return "EDGE", nonmanifold_edges(bm)
     if kind == "BOUNDARY":
         return "EDGE", boundary_edges(bm)
     if kind == "INTERSECTING":
-        return "FACE", intersecting_faces(bm)
+        return "FACE", intersecting_faces(bm, matrix)
     if kind == "THIN":
-        return "FACE", thin_faces(bm, min_wall)
+        return "FACE", thin_faces(bm, min_wall, matrix)
     raise ValueError(f"unknown problem kind {kind!r}")
 
 
@@ -148,12 +153,12 @@ def fill_holes(bm, max_edges: int) -> Dict:
             "added_faces": len(bm.faces) - n0}
 
 
-def remove_tiny_shells(bm, min_volume_mm3: float) -> Dict:
+def remove_tiny_shells(bm, min_volume_mm3: float, matrix=None) -> Dict:
     """Delete the loose parts enclosing less than ``min_volume_mm3`` mm³ (absolute volume).
     Returns ``{"removed", "volumes_mm3"}``."""
     from ..core.printing.solid import tiny_shells
 
-    v, f, owner = mesh_arrays(bm)
+    v, f, owner = mesh_arrays(bm, matrix)
     if not len(f):
         return {"removed": 0, "volumes_mm3": []}
     shells = tiny_shells(v, f, min_volume_mm3)
@@ -164,7 +169,7 @@ def remove_tiny_shells(bm, min_volume_mm3: float) -> Dict:
     return {"removed": len(shells), "volumes_mm3": [round(float(s["volume_mm3"]), 4) for s in shells]}
 
 
-def relax_selected(bm, max_deviation: float, iterations: int = 10) -> Dict:
+def relax_selected(bm, max_deviation: float, iterations: int = 10, matrix=None) -> Dict:
     """Smooth the selected vertices with the core's Laplacian filter (Fujiwara 1995, λ 0.5), the
     unselected ones locked (gain 0), none moving farther than ``max_deviation`` mm from where it
     was (the bound is applied after every pass). Laplacian rather than Taubin: under a tight
@@ -174,7 +179,7 @@ def relax_selected(bm, max_deviation: float, iterations: int = 10) -> Dict:
     from ..core.smooth.constraints import Constraint
     from ..core.smooth.driver import smooth
 
-    v, f, _ = mesh_arrays(bm)
+    v, f, _ = mesh_arrays(bm, matrix)
     sel = np.array([x.select for x in bm.verts], bool)
     if not sel.any() or not len(f):
         return {"moved": 0, "max_moved_mm": 0.0}
@@ -182,8 +187,11 @@ def relax_selected(bm, max_deviation: float, iterations: int = 10) -> Dict:
                  constraint=Constraint(max_deviation=float(max_deviation)), gain=sel.astype(np.float64),
                  fold_guard=True)
     out[~sel] = v[~sel]
+    d = np.linalg.norm(out - v, axis=1)
+    if matrix is not None:  # back to the mesh's own coordinates
+        inv = np.linalg.inv(np.asarray(matrix, np.float64))
+        out = out @ inv[:3, :3].T + inv[:3, 3]
     for x, p in zip(bm.verts, out):
         if x.select:
             x.co = p
-    d = np.linalg.norm(out - v, axis=1)
     return {"moved": int((d > 0).sum()), "max_moved_mm": round(float(d.max()), 4)}

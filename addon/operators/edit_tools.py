@@ -18,6 +18,11 @@ from .. import edit_tools
 from ..common import guarded
 
 
+def _matrix(context):
+    """The edited object's transform (measures in world mm)."""
+    return [list(r) for r in context.active_object.matrix_world]
+
+
 class _EditBase:
     bl_options = {"REGISTER", "UNDO"}
 
@@ -43,7 +48,8 @@ class ANATOMESH_OT_edit_select_problem(_EditBase, Operator):
     @guarded
     def execute(self, context):
         bm = bmesh.from_edit_mesh(context.active_object.data)
-        domain, idx = edit_tools.problem_elements(bm, self.kind, context.scene.anatomesh_print.min_wall)
+        domain, idx = edit_tools.problem_elements(bm, self.kind, context.scene.anatomesh_print.min_wall,
+                                                  _matrix(context))
         context.tool_settings.mesh_select_mode = (False, domain == "EDGE", domain == "FACE")
         bm.select_mode = {domain}
         edit_tools.select_elements(bm, domain, idx)
@@ -80,7 +86,7 @@ class ANATOMESH_OT_edit_remove_tiny(_EditBase, Operator):
     @guarded
     def execute(self, context):
         bm = bmesh.from_edit_mesh(context.active_object.data)
-        r = edit_tools.remove_tiny_shells(bm, self.min_volume)
+        r = edit_tools.remove_tiny_shells(bm, self.min_volume, _matrix(context))
         vols = ", ".join(f"{x:g}" for x in r["volumes_mm3"][:5])
         return self.done(context, f"{r['removed']} tiny shell(s) removed" + (f" ({vols} mm³)" if vols else ""))
 
@@ -98,7 +104,7 @@ class ANATOMESH_OT_edit_relax(_EditBase, Operator):
     @guarded
     def execute(self, context):
         bm = bmesh.from_edit_mesh(context.active_object.data)
-        r = edit_tools.relax_selected(bm, self.max_deviation, self.iterations)
+        r = edit_tools.relax_selected(bm, self.max_deviation, self.iterations, _matrix(context))
         return self.done(context, f"{r['moved']} vertices relaxed, at most {r['max_moved_mm']:g} mm")
 
 

@@ -155,3 +155,19 @@ def test_edit_operators_need_edit_mode(empty_scene, mods):
     assert bpy.ops.anatomesh.edit_relax.get_rna_type().bl_rna.identifier
     for op in ("edit_select_problem", "edit_fill_holes", "edit_remove_tiny", "edit_relax"):
         assert "UNDO" in getattr(bpy.types, "ANATOMESH_OT_" + op).bl_options
+
+
+def test_volumes_are_measured_in_world_mm(empty_scene, mods):
+    # a 1 mm cube scaled by 2 encloses 8 mm³ in the scene: kept at 4 mm³, removed at 10 mm³
+    v, f = box((0, 0, 0), (1, 1, 1), 1)
+    obj = _object(mods, "scaled", v, f)
+    obj.scale = (2.0, 2.0, 2.0)
+    bpy.context.view_layer.update()
+    _edit(obj)
+    assert bpy.ops.anatomesh.edit_remove_tiny(min_volume=4.0) == {"FINISHED"}
+    _object_mode()
+    assert len(obj.data.polygons) == len(f)
+    _edit(obj)
+    assert bpy.ops.anatomesh.edit_remove_tiny(min_volume=10.0) == {"FINISHED"}
+    _object_mode()
+    assert len(obj.data.polygons) == 0
