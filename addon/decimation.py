@@ -81,9 +81,12 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
 
 def write_surface(obj, vertices, faces, vertex_ids=None) -> None:
     """New geometry for a surface object (materials and name stay): it becomes the rest shape;
-    ``vertex_ids`` (N,) its shared-set indices, None when it has none any more."""
+    ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The edges come
+    from the core (:func:`anatomesh.addon.live_iso.set_triangles`)."""
+    from .live_iso import set_triangles
+
     me = obj.data
-    bridge.set_geometry(me, vertices, faces)
+    set_triangles(me, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
     if live.LATTICE_ATTRIBUTE in me.attributes:  # decimated vertices left their lattice cells
         me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])
