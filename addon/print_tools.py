@@ -143,6 +143,7 @@ def reextract_fixed(context, coll, fuse: Sequence[Sequence[int]] = (), thicken: 
     same = bpy.path.abspath(settings.filepath) == bpy.path.abspath(src)
     vol = load_volume(src, settings.series if same else "", settings.label_table if same else "",
                       coll.anatomesh.space, grid=settings.grid if same else "")
+    _one_label_map(vol)
     recipe = Recipe(input=str(src), space=vol.space, labels=sorted({int(o["anatomesh_value"]) for o in objs}),
                     fuse=[list(g) for g in fuse], thicken=bool(thicken), profile=profile,
                     min_wall=min_wall)
@@ -169,6 +170,16 @@ def reextract_fixed(context, coll, fuse: Sequence[Sequence[int]] = (), thicken: 
         for fix in fixes:
             record(o, fix)
     return new, fixes
+
+
+def _one_label_map(vol) -> None:
+    """Fuse and Thicken change one label map (overlapping structures are meshed layer by layer)."""
+    from ..core.model.errors import AnatomeshError
+    from ..core.model.segmentation import as_layers
+
+    if not vol.is_label_map or len(as_layers(vol)) > 1:
+        raise AnatomeshError("Fuse and Thicken work on one label map; this scan is a scalar scan or has "
+                             "overlapping structures", vol.meta.get("source"))
 
 
 def _colour(obj):
