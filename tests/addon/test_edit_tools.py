@@ -171,3 +171,20 @@ def test_volumes_are_measured_in_world_mm(empty_scene, mods):
     assert bpy.ops.anatomesh.edit_remove_tiny(min_volume=10.0) == {"FINISHED"}
     _object_mode()
     assert len(obj.data.polygons) == 0
+
+
+def test_selector_selects_thin_faces_below_the_minimum_wall(empty_scene, mods):
+    # a 0.5 mm plate beside a 6 mm block, one mesh: the plate's faces are thin at 0.8 mm
+    vp, fp = box((0, 0, 0), (12, 10, 0.5), 6)
+    vb, fb = box((20, 0, 0), (26, 6, 6), 4)
+    obj = _object(mods, "plate_block", np.concatenate([vp, vb]), np.concatenate([fp, fb + len(vp)]))
+    empty_scene.anatomesh_print.min_wall = 0.8
+    _edit(obj)
+    assert bpy.ops.anatomesh.edit_select_problem(kind="THIN") == {"FINISHED"}
+    bm = bmesh.from_edit_mesh(obj.data)
+    sel = np.array([x.index for x in bm.faces if x.select])
+    z = vp[fp][:, :, 2]
+    flat = np.flatnonzero(np.all(z == 0.0, axis=1) | np.all(z == 0.5, axis=1))  # top and bottom
+    assert set(flat.tolist()) <= set(sel.tolist())
+    assert np.all(sel < len(fp))  # the plate, never the block
+    _object_mode()
