@@ -57,12 +57,12 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
         shells = {int(m.value): m for m in out.shells()}
         for k, o in enumerate(members):
             m = shells[k + 1]
-            _write(o, m.vertices, m.faces, m.meta["vertex_ids"])
+            write_surface(o, m.vertices, m.faces, m.meta["vertex_ids"])
             results[o.name] = rep["shells"][k + 1]
     for o in alone:
         v, f = bridge.arrays(o.data)
         out, rep = decimate_mesh(Mesh(v, f), **kwargs)
-        _write(o, out.vertices, out.faces, None)
+        write_surface(o, out.vertices, out.faces, None)
         results[o.name] = rep["shells"][None]
     for o in objs:
         r = results[o.name]
@@ -79,9 +79,14 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     return results
 
 
-def _write(obj, vertices, faces, vertex_ids) -> None:
+def write_surface(obj, vertices, faces, vertex_ids=None) -> None:
+    """New geometry for a surface object (materials and name stay): it becomes the rest shape;
+    ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The edges come
+    from the core (:func:`anatomesh.addon.live_iso.set_triangles`)."""
+    from .live_iso import set_triangles
+
     me = obj.data
-    bridge.set_geometry(me, vertices, faces)
+    set_triangles(me, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
     if live.LATTICE_ATTRIBUTE in me.attributes:  # decimated vertices left their lattice cells
         me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])

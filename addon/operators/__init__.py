@@ -23,3 +23,9 @@ CLASSES += (web.ANATOMESH_OT_export_web, web.ANATOMESH_OT_paint_margins)
 CLASSES = CLASSES + preprocess.CLASSES  # issue 15
 from . import fit  # issue 18: cut to fit
 CLASSES = CLASSES + (fit.ANATOMESH_OT_print_fit,)
+# issue 18: print tools
+from . import print_tools  # noqa: E402
+CLASSES = CLASSES + print_tools.CLASSES
+# issue 18: edit-mode tools
+from . import edit_tools  # noqa: E402
+CLASSES = CLASSES + edit_tools.CLASSES

@@ -350,3 +350,63 @@ def _draw_gallery(self, context):
 
 
 CLASSES = tuple(c for k in CLASSES for c in ((k, ANATOMESH_PT_preprocess) if k is ANATOMESH_PT_labels else (k,)))
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 18: print tools (a sub-panel of Print)
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_PT_print_tools(_Base, Panel):
+    bl_label = "Print Tools"
+    bl_idname = "ANATOMESH_PT_print_tools"
+    bl_parent_id = "ANATOMESH_PT_print"
+
+    def draw(self, context):
+        t = context.scene.anatomesh_print_tools
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator("anatomesh.print_fuse", icon="AUTOMERGE_ON")
+        row.operator("anatomesh.print_thicken", icon="MOD_SOLIDIFY")
+        row = layout.row(align=True)
+        row.prop(t, "clearance")
+        row.operator("anatomesh.print_clearance", text="Apply").clearance = t.clearance
+        col = layout.column(align=True)
+        col.prop(t, "hollow_wall")
+        col.prop(t, "drain_holes")
+        col.prop(t, "drain_diameter")
+        op = col.operator("anatomesh.print_hollow", icon="MESH_UVSPHERE")
+        op.wall, op.drain_holes, op.drain_diameter = t.hollow_wall, t.drain_holes, t.drain_diameter
+        layout.operator("anatomesh.print_connectors", icon="SNAP_PEEL_OBJECT")
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 18: edit-mode tools (a sub-panel of Print, shown in Edit Mode)
+# ---------------------------------------------------------------------------------------------
+class ANATOMESH_PT_edit_tools(_Base, Panel):
+    bl_label = "Edit Mode"
+    bl_idname = "ANATOMESH_PT_edit_tools"
+    bl_parent_id = "ANATOMESH_PT_print"
+
+    @classmethod
+    def poll(cls, context):
+        return context.mode == "EDIT_MESH"
+
+    def draw(self, context):
+        t = context.scene.anatomesh_print_tools
+        layout = self.layout
+        row = layout.row(align=True)
+        row.prop(t, "problem", text="")
+        row.operator("anatomesh.edit_select_problem", text="Select", icon="RESTRICT_SELECT_OFF").kind = t.problem
+        row = layout.row(align=True)
+        row.prop(t, "hole_edges")
+        row.operator("anatomesh.edit_fill_holes", text="Fill Holes").max_edges = t.hole_edges
+        row = layout.row(align=True)
+        row.prop(t, "tiny_volume")
+        row.operator("anatomesh.edit_remove_tiny", text="Remove Tiny").min_volume = t.tiny_volume
+        col = layout.column(align=True)
+        col.prop(t, "relax_deviation")
+        col.prop(t, "relax_iterations")
+        op = col.operator("anatomesh.edit_relax", icon="MOD_SMOOTH")
+        op.max_deviation, op.iterations = t.relax_deviation, t.relax_iterations
+
+
+CLASSES = CLASSES + (ANATOMESH_PT_print_tools, ANATOMESH_PT_edit_tools)

@@ -330,3 +330,34 @@ class ANATOMESH_PG_fit(PropertyGroup):
 
 CLASSES = CLASSES + (ANATOMESH_PG_fit,)
 _POINTERS = _POINTERS + (("Scene", "anatomesh_fit", ANATOMESH_PG_fit),)
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 18: print tools / edit-mode tools: Scene.anatomesh_print_tools
+# ---------------------------------------------------------------------------------------------
+from ..edit_tools import PROBLEM_ITEMS  # noqa: E402
+
+
+class ANATOMESH_PG_print_tools(PropertyGroup):
+    """The Print panel's tools and the Edit Mode tools' values."""
+
+    clearance: FloatProperty(name="Clearance", default=0.2, min=0.001, soft_max=2.0, unit="LENGTH",
+                             description="Gap between touching parts afterwards, mm")
+    hollow_wall: FloatProperty(name="Wall", default=2.0, min=0.1, soft_max=10.0, unit="LENGTH",
+                               description="Hollow: wall thickness left, mm")
+    drain_holes: IntProperty(name="Drain Holes", default=2, min=0, max=16,
+                             description="Hollow: holes per cavity, at its lowest points along +z")
+    drain_diameter: FloatProperty(name="Drain Diameter", default=0.0, min=0.0, soft_max=10.0, unit="LENGTH",
+                                  description="Hollow: hole diameter, mm (0: the printer profile's)")
+    problem: EnumProperty(name="Problem", default="NON_MANIFOLD", items=PROBLEM_ITEMS)
+    hole_edges: IntProperty(name="Max Edges", default=30, min=3, soft_max=500,
+                            description="Fill Holes: largest hole, in edges around it")
+    tiny_volume: FloatProperty(name="Min Volume", default=1.0, min=0.0, soft_max=1000.0,
+                               description="Remove Tiny Shells: loose parts enclosing less, mm³")
+    relax_deviation: FloatProperty(name="Max Deviation", default=0.5, min=0.0, soft_max=5.0, unit="LENGTH",
+                                   description="Relax: no vertex moves farther than this, mm")
+    relax_iterations: IntProperty(name="Iterations", default=10, min=1, soft_max=100)
+
+
+CLASSES = CLASSES + (ANATOMESH_PG_print_tools,)
+_POINTERS = _POINTERS + (("Scene", "anatomesh_print_tools", ANATOMESH_PG_print_tools),)
