@@ -52,3 +52,21 @@ def test_parts_that_do_not_touch_get_no_connectors(blocks):
     far = type(b0)(b0.vertices + 50.0, b0.faces, name="far")
     with pytest.raises(AnatomeshError, match="share no interface"):
         add_connectors(a0, far, 0.2)
+
+
+def test_prusaslicer_reads_both_connected_parts_as_manifold(blocks, tmp_path):
+    """The connected parts load in PrusaSlicer's command line as manifold solids."""
+    import shutil
+    import subprocess
+
+    from anatomesh.core.export.mesh_files import write_stl
+
+    a, b, _ = add_connectors(*blocks, clearance=0.2, diameter=5.0)
+    prusa = shutil.which("prusa-slicer")
+    if prusa is None:
+        pytest.skip("prusa-slicer (Debian package) is not installed: its manifold check is skipped")
+    for m, name in ((a, "pins"), (b, "pockets")):
+        stl = tmp_path / f"{name}.stl"
+        write_stl(m, stl)
+        res = subprocess.run([prusa, "--info", str(stl)], capture_output=True, text=True, timeout=300)
+        assert "manifold = yes" in res.stdout, res.stdout
