@@ -1,11 +1,13 @@
 """The extension package: the manifest validates, and the built zip installs into a fresh Blender."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import textwrap
 import tomllib
 import zipfile
+from pathlib import Path
 
 from conftest import REPO, shared  # tests/conftest.py
 
@@ -28,6 +30,16 @@ def test_manifest_validates():
         assert any(plat in w and "pillow" in w for w in wheels), plat
         assert any(plat in w and "pyjpegls" in w for w in wheels), plat
     assert any(w.endswith(".whl") and "highdicom" in w for w in wheels)
+    # every runtime dependency of the package but numpy (Blender's own) is bundled: a wheel per
+    # platform, or one for all
+    deps = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["dependencies"]
+    for dep in deps:
+        name = re.split(r"[<>=!~;\[ ]", dep, maxsplit=1)[0].lower().replace("-", "_")
+        if name == "numpy":
+            continue
+        mine = [w for w in wheels if Path(w).name.lower().startswith(name + "-")]
+        assert any(w.endswith("-none-any.whl") for w in mine) or all(
+            any(plat in w for w in mine) for plat in ("win_amd64", "manylinux", "macosx")), dep
     stripped = tomllib.loads(build_extension.strip_wheels(text))
     assert "wheels" not in stripped and "platforms" not in stripped and stripped["id"] == "anatomesh"
     assert stripped["blender_version_min"] == "4.2.0" and stripped["permissions"]["files"]
