@@ -39,13 +39,28 @@ METHODS = ("laplacian", "taubin", "hc", "mean_curvature", "normal_mean", "normal
 
 
 def resolve(method: str = DEFAULT, **params) -> Tuple[str, dict]:
-    """Expand a preset name into ``(filter method, parameters)``; explicit params win."""
+    """Expand a preset name into ``(filter method, parameters)``; explicit params win. A λ given
+    without μ to a Taubin preset gets the μ that keeps the preset's pass-band frequency
+    (:func:`taubin_mu`), so a stronger λ stays a valid, non-shrinking λ|μ pair."""
     if method in PRESETS:
         p = dict(PRESETS[method])
         name = p.pop("method")
-        p.update(params)
+        if params.get("lam") is not None and params.get("mu") is None and "mu" in p:
+            p["mu"] = taubin_mu(params["lam"], 1.0 / p["lam"] + 1.0 / p["mu"])
+        p.update({k: v for k, v in params.items() if not (k == "mu" and v is None)})
         return name, p
     if method in METHODS:
         return method, dict(params)
     raise AnatomeshError(f"unknown smoothing method {method!r}; choose one of "
                          f"{sorted(set(PRESETS) | set(METHODS))}")
+
+
+def taubin_mu(lam: float, k_pb: float) -> float:
+    """μ for ``lam`` with Taubin's pass-band frequency ``k_pb = 1/λ + 1/μ`` (Taubin 1995; the
+    presets' 0.11), kept in [−1, −λ): the shrinking λ step and the inflating μ step balance at the
+    same frequency whatever the strength."""
+    lam = float(lam)
+    if not 0.0 < lam < 1.0:
+        return -1.0  # the filter's own check names the bad λ
+    mu = 1.0 / (k_pb - 1.0 / lam) if k_pb < 1.0 / lam else -1.0
+    return max(-1.0, min(mu, -lam - 1e-3))

@@ -743,3 +743,24 @@ def test_bad_inputs_raise_anatomesh_errors():
         S.smooth_surfaces((v, f))
     with pytest.raises(AnatomeshError, match="needs a Mesh"):
         S.smooth_mesh((v, f))
+
+
+def test_a_stronger_lambda_alone_keeps_the_presets_pass_band():
+    """λ given without μ to a Taubin preset (the Blender strength slider, `--lambda`): μ follows
+    Taubin's pass-band k_pb = 1/λ + 1/μ of the preset, so λ above the preset's |μ| is no error."""
+    from anatomesh.core.smooth.presets import resolve
+
+    k_pb = 1 / 0.5 - 1 / 0.53
+    for lam in (0.3, 0.55, 0.7):
+        _, p = resolve("organ", lam=lam)
+        assert p["lam"] == lam and 1 / lam + 1 / p["mu"] == pytest.approx(k_pb) and -1 <= p["mu"] < -lam
+    assert resolve("organ", lam=0.5)[1]["mu"] == pytest.approx(-0.53)
+    assert resolve("organ", lam=0.6, mu=-0.8)[1]["mu"] == -0.8      # an explicit μ wins
+    assert resolve("organ", lam=0.95)[1]["mu"] == -1.0              # the filter's bound
+    v, f = icosphere(3, radius=20.0)
+    rough = v * (1 + 0.03 * np.sin(7 * v[:, :1]))            # a bumpy sphere
+    out = S.smooth(rough, f, "taubin", lam=0.7)               # an error before: μ = −0.53 > −λ
+    assert np.all(np.isfinite(out))
+    radius = lambda p: np.linalg.norm(p, axis=1)  # noqa: E731
+    assert radius(out).std() < 0.5 * radius(rough).std()  # the bumps are smoothed away
+    assert radius(out).mean() == pytest.approx(radius(rough).mean(), rel=0.05)  # no shrinking
