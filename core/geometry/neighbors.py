@@ -47,6 +47,12 @@ def check_faces(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return f
 
 
+def vertex_faces(faces: np.ndarray, n_vertices: int) -> CSR:
+    """Vertex → incident faces CSR ``(offsets (N+1,) int64, faces (3M,) int32)``, faces
+    ascending per vertex; ``faces`` (M, 3) int, checked."""
+    return _k.vertex_faces(check_faces(faces, int(n_vertices)), np.int64(n_vertices))
+
+
 class PaddedRing(NamedTuple):
     """A neighbourhood as fixed-width columns (column-major ELLPACK), :meth:`MeshStructure.padded`.
 

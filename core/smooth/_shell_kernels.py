@@ -125,25 +125,6 @@ def _add(k, d, worst, total, count):
 
 
 @njit(cache=True)
-def vertex_faces(faces, n):
-    """Vertex → faces CSR ``(offsets (n + 1,), faces (3M,))``, faces ascending per vertex."""
-    offsets = np.zeros(n + 1, np.int64)
-    for f in range(faces.shape[0]):
-        for c in range(3):
-            offsets[faces[f, c] + 1] += 1
-    for i in range(n):
-        offsets[i + 1] += offsets[i]
-    fill = offsets[:-1].copy()
-    vf = np.empty(offsets[n], np.int64)
-    for f in range(faces.shape[0]):
-        for c in range(3):
-            i = faces[f, c]
-            vf[fill[i]] = f
-            fill[i] += 1
-    return offsets, vf
-
-
-@njit(cache=True)
 def _around(faces, vf_offsets, vf, a, spoke, sign, parent):
     """Edges and fans at vertex a: ``(edges (a, b > a), one face, > 2 faces, 2 faces used in
     one direction, fans)``. Each face gives two spokes, its corner after a (+1, edge a → b) and

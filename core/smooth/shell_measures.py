@@ -22,7 +22,7 @@ import numpy as np
 from . import _shell_kernels as _k
 from ..geometry.local_distance import edge_neighbours, local_distances
 from ..geometry.kernels import union_find_roots
-from ..geometry.neighbors import MeshStructure
+from ..geometry.neighbors import MeshStructure, vertex_faces
 from ..model.mesh import Mesh
 from ..model.surfaceset import SurfaceSet
 
@@ -167,7 +167,7 @@ def shell_topology(shells: List[Mesh], degenerate: np.ndarray) -> List[dict]:
     faces = np.concatenate([m.faces.astype(np.int64) + o for m, o in zip(shells, offsets)] or
                            [np.zeros((0, 3), np.int64)])
     n = int(offsets[-1])
-    vf_offsets, vf = _k.vertex_faces(faces, n)
+    vf_offsets, vf = vertex_faces(faces, n)
     most = int(np.diff(vf_offsets).max(initial=1))
     stats = np.zeros((n, 5), np.int64)
     _k.vertex_stats(faces, vf_offsets, vf, stats,
