@@ -53,3 +53,6 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   "$VENV/bin/python" -m pip install --quiet -e ".[test]"
   echo "$want" > "$stamp"
 fi
+# our own modules' bytecode, written once: with PYTHONDONTWRITEBYTECODE set (as on CI machines)
+# every process would otherwise compile ~250 modules again (~0.2 s per command)
+"$VENV/bin/python" -m compileall -q core app addon >/dev/null || true

@@ -191,7 +191,7 @@ def extents(centres, faces, half):
 def homes(lo, hi):
     """Home cell ``floor(lo)`` shifted to start at 0, and how far up (in cells) a partner's home
     may lie, ``ceil(hi) − 1 − floor(lo)``, per face; with the largest reach ``back`` and the home
-    cells per axis ``dims``: ``(home, reach (M, 3), back, dims (3,))`` int64."""
+    cells per axis ``dims``: ``(home, reach (M, 3) int32, back, dims (3,) int64)``."""
     m = lo.shape[0]
     origin = np.zeros(3, np.int64)
     top = np.zeros(3, np.int64)
@@ -199,8 +199,8 @@ def homes(lo, hi):
     for c in range(3):
         if m:
             origin[c] = int(np.floor(lo[:, c].min()))
-    home = np.empty((m, 3), np.int64)
-    reach = np.empty((m, 3), np.int64)
+    home = np.empty((m, 3), np.int32)
+    reach = np.empty((m, 3), np.int32)
     for f in range(m):
         for c in range(3):
             base = int(np.floor(lo[f, c]))
@@ -211,16 +211,35 @@ def homes(lo, hi):
     return home, reach, back, top + 1
 
 
+@njit(cache=True, inline="always")
+def _down32(x):
+    """The largest float32 <= x."""
+    y = np.float32(x)
+    if y > x:
+        y = np.nextafter(y, np.float32(-np.inf))
+    return y
+
+
+@njit(cache=True, inline="always")
+def _up32(x):
+    """The smallest float32 >= x."""
+    y = np.float32(x)
+    if y < x:
+        y = np.nextafter(y, np.float32(np.inf))
+    return y
+
+
 @njit(parallel=True, cache=True)
 def permuted(order, lo, hi, home, reach, faces):
-    """The rows of the five arrays in ``order`` (bucket order), in parallel."""
+    """The rows of the five arrays in ``order`` (bucket order), in parallel; the extents as
+    float32 rounded outwards (they only grow: a candidate is never lost)."""
     m = order.shape[0]
-    lo2, hi2 = np.empty_like(lo), np.empty_like(hi)
+    lo2, hi2 = np.empty(lo.shape, np.float32), np.empty(hi.shape, np.float32)
     home2, reach2, faces2 = np.empty_like(home), np.empty_like(reach), np.empty_like(faces)
     for k in prange(m):
         f = order[k]
         for c in range(3):
-            lo2[k, c], hi2[k, c] = lo[f, c], hi[f, c]
+            lo2[k, c], hi2[k, c] = _down32(lo[f, c]), _up32(hi[f, c])
             home2[k, c], reach2[k, c], faces2[k, c] = home[f, c], reach[f, c], faces[f, c]
     return lo2, hi2, home2, reach2, faces2
 
@@ -228,7 +247,7 @@ def permuted(order, lo, hi, home, reach, faces):
 @njit(cache=True)
 def bucket_faces(home, dims):
     """Faces sorted by column ``(x, y)`` of their ``home`` cell (M, 3) int64 in [0, dims), then
-    by z and index: ``(start (Dx*Dy + 1,) int64, order (M,) int64, z (M,) int64)``."""
+    by z and index: ``(start (Dx*Dy + 1,) int64, order (M,) int32, z (M,) int32)``."""
     m = home.shape[0]
     ncol = dims[0] * dims[1]
     start = np.zeros(ncol + 1, np.int64)
@@ -237,12 +256,12 @@ def bucket_faces(home, dims):
     for c in range(ncol):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    order = np.empty(m, np.int64)
+    order = np.empty(m, np.int32)
     for f in range(m):
         c = home[f, 0] * dims[1] + home[f, 1]
         order[fill[c]] = f
         fill[c] += 1
-    z = np.empty(m, np.int64)
+    z = np.empty(m, np.int32)
     for c in range(ncol):  # insertion sort by z (columns are short; equal z keep index order)
         for k in range(start[c], start[c + 1]):
             f = order[k]
@@ -424,12 +443,13 @@ def _welded(X, faces, a, b):
 
 @njit(parallel=True, cache=True)
 def face_boxes(X, faces, box):
-    """Bounding box of every face into ``box`` (M, 6): min xyz, max xyz."""
+    """Bounding box of every face into ``box`` (M, 6) float32: min xyz, max xyz, rounded
+    outwards (a box only grows: a pair is never wrongly taken apart)."""
     for f in prange(faces.shape[0]):
         for c in range(3):
             x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[f, c] = min(x0, min(x1, x2))
-            box[f, 3 + c] = max(x0, max(x1, x2))
+            box[f, c] = _down32(min(x0, min(x1, x2)))
+            box[f, 3 + c] = _up32(max(x0, max(x1, x2)))
 
 
 @njit(parallel=True, cache=True)
@@ -439,8 +459,8 @@ def face_boxes_of(X, faces, rows, box):
         f = rows[i]
         for c in range(3):
             x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[f, c] = min(x0, min(x1, x2))
-            box[f, 3 + c] = max(x0, max(x1, x2))
+            box[f, c] = _down32(min(x0, min(x1, x2)))
+            box[f, 3 + c] = _up32(max(x0, max(x1, x2)))
 
 
 @njit(cache=True, inline="always")

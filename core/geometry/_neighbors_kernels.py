@@ -143,7 +143,7 @@ def face_ring(faces, vf_offsets, vf):
 
 
 @njit(cache=True)
-def feature_rings(offsets, nbr, vf_offsets, vf, face_group):
+def feature_rings(faces, offsets, nbr, vf_offsets, vf, face_group):
     """Restrict each 1-ring to what a vertex may smooth with, given a group id per face.
 
     An edge (i, j) is a *feature edge* when it has one incident face (an open boundary), more
@@ -156,35 +156,28 @@ def feature_rings(offsets, nbr, vf_offsets, vf, face_group):
     Returns ``(offsets, indices, kind)`` with kind (n,) int8: 0 free, 1 on a curve, 2 fixed.
     """
     n = offsets.shape[0] - 1
-    is_feature = np.zeros(nbr.shape[0], np.bool_)
+    faces_of_edge = np.zeros(nbr.shape[0], np.int64)  # per ring entry (i, j): faces of edge ij
+    group = np.full(nbr.shape[0], -1, np.int64)        # their group, −2 when they differ
     nfeat = np.zeros(n, np.int64)
     for i in range(n):
-        c = 0
+        for b in range(vf_offsets[i], vf_offsets[i + 1]):
+            f = vf[b]
+            for k in range(3):
+                j = faces[f, k]
+                if j == i or (k > 0 and j == faces[f, 0]) or (k == 2 and j == faces[f, 1]):
+                    continue  # a corner repeated in a degenerate face counts once
+                a = offsets[i]
+                while nbr[a] != j:  # j is in i's ring: every face of i lists its ring
+                    a += 1
+                faces_of_edge[a] += 1
+                if group[a] == -1:
+                    group[a] = face_group[f]
+                elif group[a] != face_group[f]:
+                    group[a] = -2
         for a in range(offsets[i], offsets[i + 1]):
-            j = nbr[a]
-            # faces of edge (i, j): faces of i that also contain j
-            count = 0
-            g0 = -1
-            mixed = False
-            for b in range(vf_offsets[i], vf_offsets[i + 1]):
-                f = vf[b]
-                has_j = False
-                for c2 in range(vf_offsets[j], vf_offsets[j + 1]):
-                    if vf[c2] == f:
-                        has_j = True
-                        break
-                    if vf[c2] > f:
-                        break
-                if has_j:
-                    if count == 0:
-                        g0 = face_group[f]
-                    elif face_group[f] != g0:
-                        mixed = True
-                    count += 1
-            if count == 1 or count > 2 or mixed:
-                is_feature[a] = True
-                c += 1
-        nfeat[i] = c
+            if faces_of_edge[a] != 2 or group[a] == -2:
+                nfeat[i] += 1
+    is_feature = (faces_of_edge != 2) | (group == -2)
     counts = np.zeros(n, np.int64)
     kind = np.zeros(n, np.int8)
     for i in range(n):

@@ -34,13 +34,13 @@ class Buckets(NamedTuple):
     """Faces in bucket order (by column (x, y) of their home cell, then z): the arrays of the
     kernels, rows in bucket order."""
     start: np.ndarray   #: (Dx * Dy + 1,) int64: rows of each column
-    z: np.ndarray       #: (M,) int64: home z of each row
-    lo: np.ndarray      #: (M, 3) float64: extent, low corner
-    hi: np.ndarray      #: (M, 3) float64: extent, high corner
-    home: np.ndarray    #: (M, 3) int64: home cell
-    reach: np.ndarray   #: (M, 3) int64: how far up a partner's home can be
+    z: np.ndarray       #: (M,) int32: home z of each row
+    lo: np.ndarray      #: (M, 3) float32: extent, low corner (rounded down)
+    hi: np.ndarray      #: (M, 3) float32: extent, high corner (rounded up)
+    home: np.ndarray    #: (M, 3) int32: home cell
+    reach: np.ndarray   #: (M, 3) int32: how far up a partner's home can be
     faces: np.ndarray   #: (M, 3) int32: corners
-    fid: np.ndarray     #: (M,) int64: face index of each row
+    fid: np.ndarray     #: (M,) int32: face index of each row
     dims: np.ndarray    #: (3,) int64: home cells per axis
     back: np.ndarray    #: (3,) int64: how far down a partner's home can be
 
@@ -64,20 +64,22 @@ class FaceBoxes:
     """
 
     def __init__(self, faces: np.ndarray, centres: np.ndarray, half: Sequence[float]):
-        lo, hi = face_extents(faces, centres, half)
         f = check_faces(faces, len(centres))
-        self.faces = f
+        c = np.asarray(centres)
         # columns along the two axes the faces' order varies slowest in, rows sorted along the
         # fastest: bucket order then follows the face order (cheap to sort and to gather)
-        axes = np.argsort(np.abs(np.diff(lo[::max(1, len(f) // 4096)], axis=0)).mean(axis=0)) \
+        axes = np.argsort(np.abs(np.diff(c[f[::max(1, len(f) // 4096), 0]], axis=0)).mean(axis=0)) \
             if len(f) > 1 else np.arange(3)
-        lo, hi = np.ascontiguousarray(lo[:, axes]), np.ascontiguousarray(hi[:, axes])
+        half = np.broadcast_to(np.asarray(half, np.float64), (3,))[axes]
+        lo, hi = face_extents(f, np.asarray(c, np.float64)[:, axes], half)
         home, reach, back, dims = _k.homes(lo, hi)
         start, order, z = _k.bucket_faces(home, dims)
         rows = _k.permuted(order, lo, hi, home, reach, f)
+        del lo, hi, home, reach
+        self.faces = f
         self.buckets = Buckets(start, z, rows[0], rows[1], rows[2], rows[3], rows[4], order,
                                dims, back)
-        self._box = np.empty((len(f), 6))
+        self._box = np.empty((len(f), 6), np.float32)
         self._pairs: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._hit = np.zeros(0, np.uint8)
         self._boxed = None  # face boxes computed (for vertices of this shape)

@@ -152,8 +152,8 @@ class MeshStructure:
                 g = np.zeros(self.n_faces, np.int64)
             else:
                 g = np.ascontiguousarray(face_groups, dtype=np.int64).ravel()
-            self._feature[key] = _k.feature_rings(self.ring_offsets, self.ring, self.vf_offsets,
-                                                  self.vf, g)
+            self._feature[key] = _k.feature_rings(self.faces, self.ring_offsets, self.ring,
+                                                  self.vf_offsets, self.vf, g)
             self._feature.pop(("index", key), None)
         self._last_feature_key = key
         return self._feature[key]
@@ -172,6 +172,12 @@ class MeshStructure:
         out = PaddedRing(cols, inv_count.astype(dtype), ext, level_at)
         self._padded[key] = (indices, offsets, out)
         return out
+
+    def release_buffers(self) -> None:
+        """Drop the padded rings and working buffers of the smoothing passes (rebuilt on the
+        next call): a one-shot smoothing frees them before measuring."""
+        self._padded.clear()
+        self._buffers.clear()
 
     def work_buffers(self, dtype=np.float64, count: int = 2,
                      columns: Optional[int] = None) -> Tuple[np.ndarray, ...]:

@@ -15,6 +15,7 @@ are set to the minimum finite value with a warning; in a label map they are an e
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import List, Optional, Tuple
 
@@ -58,8 +59,7 @@ def read_nifti(path, volume_index: Optional[int] = None, labels=None,
         Not a NIfTI file, truncated or corrupt data, 4D without ``volume_index``, 5D+, a label map
         with NaN voxels, or too large for the available memory.
     """
-    import nibabel as nib
-
+    nib = _nibabel()
     p = Path(path)
     img = _open(p, nib)
     hdr = img.header
@@ -101,6 +101,21 @@ def read_nifti(path, volume_index: Optional[int] = None, labels=None,
         intent = ""
     return finish_volume(data, affine, "RAS", meta, p, warnings, labels=labels,
                          label_map=label_map, hint_label=(intent == "label"))
+
+
+def _nibabel():
+    """``nibabel``, imported without pydicom when pydicom is not loaded yet and we are not inside
+    Blender: ``nibabel.nifti1`` imports pydicom only for the rare DICOM header extension, which
+    costs ~0.3 s of every NIfTI command (a later ``import pydicom`` works as usual)."""
+    if "nibabel" in sys.modules or "pydicom" in sys.modules or "bpy" in sys.modules:
+        import nibabel
+        return nibabel
+    sys.modules["pydicom"] = None  # nibabel's optional_package sees it as not installed
+    try:
+        import nibabel
+    finally:
+        del sys.modules["pydicom"]
+    return nibabel
 
 
 def _open(p: Path, nib):

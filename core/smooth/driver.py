@@ -121,7 +121,7 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
                           damping_distance=damping_distance, preserve_volume=preserve_volume,
                           fold_guard=fold_guard, untangle=untangle, measure=measure,
                           distances=distances, volume_warning_pct=volume_warning_pct,
-                          precision=precision, progress=progress, **params)
+                          precision=precision, progress=progress, keep=False, **params)
 
 
 def smooth_mesh(mesh: Mesh, method: str = DEFAULT, *, affine: Optional[np.ndarray] = None,

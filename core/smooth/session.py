@@ -285,11 +285,23 @@ class SmoothingSession:
             warnings += shell_warnings(f"{name} ({key})", r, volume_warning_pct)
         return shells, warnings
 
+    def release(self) -> None:
+        """Free what only the guards and passes use (the face buckets, the volume regions, the
+        structure's padded rings and buffers; rebuilt if needed): a one-shot run measures
+        without them, so its peak memory is the larger of the two steps, not their sum."""
+        self._cache.pop("boxes", None)
+        self._cache.pop("regions", None)
+        self.structure.release_buffers()
+
     def smooth(self, method: str = DEFAULT, *, measure: bool = True, distances: bool = True,
-               volume_warning_pct: float = 5.0, **settings) -> Tuple[SurfaceSet, SmoothingReport]:
+               volume_warning_pct: float = 5.0, keep: bool = True,
+               **settings) -> Tuple[SurfaceSet, SmoothingReport]:
         """:meth:`run`, then the smoothed set and its :class:`SmoothingReport` (per-shell
-        measures when ``measure``; ``distances`` adds the Hausdorff and mean distances)."""
+        measures when ``measure``; ``distances`` adds the Hausdorff and mean distances).
+        ``keep=False``: :meth:`release` the guards' caches before measuring (one-shot runs)."""
         vertices, info = self.run(method, **settings)
+        if not keep:
+            self.release()
         out = self.surfaces.copy_with_vertices(vertices)
         shells, warnings = {}, list(info["warnings"])
         if measure and info["method"] != "none":
