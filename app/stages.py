@@ -123,7 +123,8 @@ def smooth(surfaces: SurfaceSet, recipe: Recipe,
     if method == SMOOTH_NONE:
         return surfaces, {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
     from ..core.smooth.driver import smooth_surfaces
-    out, rep = smooth_surfaces(surfaces, method, progress=progress, **settings)
+    # the run's report gives each output surface's topology itself (after any decimation)
+    out, rep = smooth_surfaces(surfaces, method, progress=progress, topology=False, **settings)
     return out, rep.as_dict()
 
 

@@ -62,9 +62,9 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
                     staircase="auto", damping_distance: Optional[float] = None,
                     preserve_volume: Optional[bool] = None, fold_guard: bool = True,
                     untangle: bool = True, measure: bool = True, distances: bool = True,
-                    volume_warning_pct: float = 5.0, structure: Optional[MeshStructure] = None,
-                    precision: str = "float64", progress: Optional[Progress] = None,
-                    **params) -> Tuple[SurfaceSet, SmoothingReport]:
+                    topology: bool = True, volume_warning_pct: float = 5.0,
+                    structure: Optional[MeshStructure] = None, precision: str = "float64",
+                    progress: Optional[Progress] = None, **params) -> Tuple[SurfaceSet, SmoothingReport]:
     """Smooth a :class:`~anatomesh.core.model.surfaceset.SurfaceSet` and measure it.
 
     Parameters
@@ -101,9 +101,10 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
         Last, pull the vertices of faces that now cross (inside a shell or between two shells a
         voxel apart) back toward their unsmoothed positions until nothing crosses;
         ``report.params["untangled_vertices"]`` counts them.
-    measure, distances : bool
+    measure, distances, topology : bool
         Per-shell report; ``distances`` adds the symmetric Hausdorff and mean distance to the
-        unsmoothed shell.
+        unsmoothed shell, ``topology`` its components, genus, closed, manifold, oriented (else
+        only its degenerate faces: smoothing never changes the rest).
     volume_warning_pct : float
         Shells whose volume changed more than this get a line in ``report.warnings``.
     structure : MeshStructure, optional
@@ -120,7 +121,8 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
                           junctions=junctions, staircase=staircase,
                           damping_distance=damping_distance, preserve_volume=preserve_volume,
                           fold_guard=fold_guard, untangle=untangle, measure=measure,
-                          distances=distances, volume_warning_pct=volume_warning_pct,
+                          distances=distances, topology=topology,
+                          volume_warning_pct=volume_warning_pct,
                           precision=precision, progress=progress, keep=False, **params)
 
 

@@ -271,12 +271,12 @@ class SmoothingSession:
                                 "smoothing (the unsmoothed surface crosses itself there)")
         return out, extra, warnings
 
-    def measure(self, vertices: np.ndarray, *, distances: bool = True,
+    def measure(self, vertices: np.ndarray, *, distances: bool = True, topology: bool = True,
                 volume_warning_pct: float = 5.0) -> Tuple[Dict, list]:
         """Per-shell measures of smoothed ``vertices`` (N, 3) against the unsmoothed set
         (:class:`~anatomesh.core.smooth.shell_measures.ShellMeasures`) and their warnings."""
         shells = self.measures().measure(np.ascontiguousarray(vertices, np.float64),
-                                         distances=distances)
+                                         distances=distances, topology=topology)
         warnings = []
         for value, r in zip(self.surfaces.values(), shells.values()):
             info = self.surfaces.labels.get(value)
@@ -294,10 +294,11 @@ class SmoothingSession:
         self.structure.release_buffers()
 
     def smooth(self, method: str = DEFAULT, *, measure: bool = True, distances: bool = True,
-               volume_warning_pct: float = 5.0, keep: bool = True,
+               topology: bool = True, volume_warning_pct: float = 5.0, keep: bool = True,
                **settings) -> Tuple[SurfaceSet, SmoothingReport]:
         """:meth:`run`, then the smoothed set and its :class:`SmoothingReport` (per-shell
-        measures when ``measure``; ``distances`` adds the Hausdorff and mean distances).
+        measures when ``measure``; ``distances`` adds the Hausdorff and mean distances,
+        ``topology`` each shell's topology).
         ``keep=False``: :meth:`release` the guards' caches before measuring (one-shot runs)."""
         vertices, info = self.run(method, **settings)
         if not keep:
@@ -305,7 +306,7 @@ class SmoothingSession:
         out = self.surfaces.copy_with_vertices(vertices)
         shells, warnings = {}, list(info["warnings"])
         if measure and info["method"] != "none":
-            shells, more = self.measure(vertices, distances=distances,
+            shells, more = self.measure(vertices, distances=distances, topology=topology,
                                         volume_warning_pct=volume_warning_pct)
             warnings += more
         return out, SmoothingReport(info["method"], info["params"], info["seconds"], shells,

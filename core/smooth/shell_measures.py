@@ -86,9 +86,11 @@ class ShellMeasures:
             self._topology = shell_topology(self.surfaces.shells(), self.before[:, 3])
         return self._topology
 
-    def measure(self, after: np.ndarray, *, distances: bool = True) -> Dict:
+    def measure(self, after: np.ndarray, *, distances: bool = True, topology: bool = True) -> Dict:
         """Per shell value, the measures of :func:`anatomesh.core.geometry.measure.compare`
-        (without curvature) at float64 positions ``after``."""
+        (without curvature) at float64 positions ``after``. ``topology=False``: the topology
+        entries hold only ``degenerate_faces`` (smoothing moves vertices, never the faces:
+        the rest cannot change), saving the per-shell topology pass."""
         cols, angle = self._faces(after)
         now = np.empty((len(self.values), 7))
         _k.label_sums(self.sides, cols, _SIGNED, now)
@@ -99,7 +101,9 @@ class ShellMeasures:
         dist = self._distances(after) if distances else None
         angles = self._angle_stats(angle)
         out = {}
-        for k, (value, topo) in enumerate(zip(self.values, self.topology_before())):
+        topologies = self.topology_before() if topology else \
+            [{"degenerate_faces": int(d)} for d in self.before[:, 3]]
+        for k, (value, topo) in enumerate(zip(self.values, topologies)):
             out[self._key(value)] = self._shell(k, now[k], worst_disp[k], angles[:, k], topo, dist)
         return out
 
@@ -124,7 +128,7 @@ class ShellMeasures:
         r["flipped_faces"] = int(now[2])
         after = dict(topo, degenerate_faces=int(now[3]))
         r["topology_before"], r["topology_after"] = dict(topo), after
-        r["topology_changed"] = [key for key in _TOPO_KEYS if topo[key] != after[key]]
+        r["topology_changed"] = [key for key in _TOPO_KEYS if topo.get(key) != after.get(key)]
         return r
 
     def _angle_stats(self, angle: np.ndarray) -> np.ndarray:
