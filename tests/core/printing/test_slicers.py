@@ -38,8 +38,9 @@ PRUSA_REPAIRS = ("open_edges", "degenerate_facets", "edges_fixed", "facets_remov
 
 
 def admesh_stats(path) -> dict:
-    out = subprocess.run([ADMESH, str(path)], capture_output=True, text=True, timeout=120,
-                         check=True).stdout
+    # admesh prints the 80-byte header as a C string, often with stray bytes after it
+    out = subprocess.run([ADMESH, str(path)], capture_output=True, text=True, errors="replace",
+                         timeout=120, check=True).stdout
     stats = {}
     for key in ADMESH_REPAIRS + ("Number of parts",):
         m = re.search(rf"^{re.escape(key)}\s*:\s*(\d+)", out, re.M)
