@@ -69,13 +69,16 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
 
 
 def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure, reference: np.ndarray,
-                    rounds: int = 10, eps: float = 1e-3) -> int:
+                    rounds: int = 10, eps: float = 1e-3,
+                    touched: Optional[np.ndarray] = None) -> int:
     """:func:`unfold` on float64 (N, 3) ``pos``, in place (no checks); returns the vertices
-    moved. After the first full scan only faces around moved vertices are checked again."""
+    moved, and marks them in ``touched`` (N,) bool if given (all False on entry). After the
+    first full scan only faces around moved vertices are checked again."""
     bad = np.flatnonzero(_gk.folded(pos, s.faces, reference, float(eps)))
     if bad.size == 0:
         return 0
-    touched = np.zeros(pos.shape[0], np.bool_)
+    if touched is None:
+        touched = np.zeros(pos.shape[0], np.bool_)
     _gk.unfold_rounds(pos, start, s.faces, reference, float(eps), s.vf_offsets, s.vf, bad,
                       int(rounds), touched)
     return int(touched.sum())

@@ -39,7 +39,7 @@ from .guards import VolumeRegions, component_regions, fold_reference, unfold_in_
 from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
 from .shell_measures import ShellMeasures, shell_key, shell_warnings
-from .untangle import untangle as untangle_crossings
+from .untangle import rows_of, untangle as untangle_crossings
 from ..geometry.face_pairs import FaceBoxes
 from ..geometry.neighbors import MeshStructure
 from ..model.errors import AnatomeshError
@@ -266,10 +266,32 @@ class SmoothingSession:
             out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
                                            structure=self.structure)
             extra["untangled_vertices"] = info["moved_vertices"]
+            if fold_guard and info["moved_vertices"]:
+                out, more, left = self._unfold_untangled(out, pairs)
+                extra["unfolded_vertices"] += more
+                info["crossings_left"] = left if left is not None else info["crossings_left"]
             if info["crossings_left"]:
                 warnings.append(f"{info['crossings_left']} pairs of faces still cross after "
                                 "smoothing (the unsmoothed surface crosses itself there)")
         return out, extra, warnings
+
+    def _unfold_untangled(self, out: np.ndarray, pairs, rounds: int = 3):
+        """Untangling pulls vertices part of the way back and can fold a few faces: unfold
+        them, then untangle around the vertices that moved, until neither finds anything.
+        Returns (float32 positions, vertices unfolded, crossings left or None)."""
+        s, unfolded, left = self.structure, 0, None
+        for _ in range(rounds):
+            pos, touched = out.astype(np.float64), np.zeros(len(out), np.bool_)
+            moved = unfold_in_place(pos, self.rest, s, self.reference(), touched=touched)
+            if moved == 0:
+                break
+            unfolded += moved
+            active = np.zeros(s.n_faces, np.bool_)
+            active[rows_of(s.vf_offsets, s.vf, np.flatnonzero(touched))] = True
+            out, info = untangle_crossings(pos.astype(np.float32), self.surfaces.vertices,
+                                           self.faces, pairs=pairs, structure=s, active=active)
+            left = info["crossings_left"]
+        return out, unfolded, left
 
     def measure(self, vertices: np.ndarray, *, distances: bool = True, topology: bool = True,
                 volume_warning_pct: float = 5.0) -> Tuple[Dict, list]:

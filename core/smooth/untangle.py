@@ -32,7 +32,8 @@ from ..model.errors import AnatomeshError
 
 def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, rounds: int = 8,
              shrink: float = 0.5, pairs: Optional[FaceBoxes] = None,
-             structure: Optional[MeshStructure] = None) -> Tuple[np.ndarray, Dict]:
+             structure: Optional[MeshStructure] = None,
+             active: Optional[np.ndarray] = None) -> Tuple[np.ndarray, Dict]:
     """Move the vertices of crossing faces back toward ``rest`` until no faces cross.
 
     ``vertices`` (N, 3) float, mm: the smoothed positions; ``rest`` (N, 3): the unsmoothed ones
@@ -41,7 +42,9 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
     rounds the vertices still involved go back to ``rest`` exactly. ``pairs``: the faces'
     :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes` when every vertex stays in its box
     (only the pairs that can cross are tested); None: search all faces. ``structure``:
-    the faces' neighbourhoods, if built. Returns ``(vertices, info)`` with ``info =
+    the faces' neighbourhoods, if built. ``active`` (M,) bool: only pairs with one of these
+    faces are checked at the start (the faces around vertices moved since an untangled state;
+    None: all). Returns ``(vertices, info)`` with ``info =
     {"crossing_pairs": found at the start, "moved_vertices": how many were pulled back,
     "rounds": rounds used, "crossings_left": pairs left (0 unless ``rest`` itself crosses)}``.
     """
@@ -61,7 +64,7 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
         return self_intersections(v, f, active=active)
 
     moved = np.zeros(len(v), bool)
-    found = crossings()
+    found = crossings(active)
     info["crossing_pairs"] = int(len(found))
     for k in range(rounds + 1):
         if len(found) == 0:
