@@ -106,3 +106,26 @@ def test_untangling_over_cached_pairs_equals_untangling_over_all_faces(smoothed_
         assert len(self_intersections(fast, ss.faces)) == 0
         found += info["crossing_pairs"]
     assert found > 20
+
+
+def test_untangling_leaves_no_folded_faces_on_the_chest_ct_bone():
+    """Untangling pulls vertices part of the way back toward the unsmoothed surface, which can
+    fold a face (the chest CT's 300 HU surface had 4-5): the driver unfolds those and untangles
+    the moved vertices' faces again, so the default leaves neither folds nor crossings."""
+    from anatomesh.core.extract.isosurface import isosurface
+    from anatomesh.core.geometry.face_pairs import FaceBoxes
+    from anatomesh.core.model.surfaceset import SurfaceSet
+    from conftest import shared
+
+    vol = load(shared("itkelastix_chest_ct"))
+    mesh = isosurface(vol, 300.0)
+    raw = SurfaceSet.from_meshes([mesh], vol.affine, mesh.space)
+    sm, rep = smooth_surfaces(raw, "organ", topology=False)
+    shell = next(iter(rep.shells.values()))
+    assert rep.params["untangled_vertices"] > 0  # untangling had work to do here
+    assert shell["flipped_faces"] == 0
+    assert not any("folded" in w or "cross" in w for w in rep.warnings)
+    centres = np.einsum("ij,kj->ik", raw.vertices - vol.affine[:3, 3],
+                        np.linalg.inv(vol.affine[:3, :3]))
+    boxes = FaceBoxes(raw.faces, centres, (0.5, 0.5, 0.5))
+    assert len(boxes.crossings(sm.vertices)) == 0
