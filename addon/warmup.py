@@ -1,6 +1,6 @@
 """First run in Blender: compile the numba kernels in a background process, with a status line.
 
-numba compiles each kernel the first time it runs (30-60 s in all on a fresh install) and would
+numba compiles each kernel the first time it runs (2.5-4 min in all on a fresh install, 2 cores) and would
 freeze Blender meanwhile. So once the extension is enabled, :func:`start` launches Blender's own
 Python (``sys.executable``) on :mod:`anatomesh.app.warmup`, imported under the add-on's own
 package name (``bl_ext.<repo>.anatomesh``): numba's cache, next to the sources in

@@ -1,8 +1,8 @@
 """The warm-up: compile Anatomesh's numba kernels once (first run), or load them from numba's cache.
 
-numba compiles a kernel the first time a process calls it — 30-60 s for all of Anatomesh's on a
-fresh install — and caches the machine code next to the sources (``__pycache__``), where later
-processes load it in milliseconds. :func:`warm_up` runs the stages on tiny made-up inputs, in
+numba compiles a kernel the first time a process calls it — 2.5-4 min for all of Anatomesh's on
+a fresh install with 2 cores — and caches the machine code next to the sources
+(``__pycache__``), where later processes load it in milliseconds. :func:`warm_up` runs the stages on tiny made-up inputs, in
 the order a first session needs them (reading, extraction, smoothing, report and files first;
 decimation, print checks and fixes, scene files after), so that every kernel and every argument
 type the default flow uses is compiled and cached before the user's first real run.
@@ -37,7 +37,7 @@ DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "smoothing", "files
 EXTRA_STEPS = ("more data types", "decimation and levels of detail", "print checks and fixes")
 
 #: a one-line note for runs that compile (the CLI prints it on stderr once)
-FIRST_RUN_NOTE = ("first run: compiling Anatomesh's kernels once (~40 s; `python -m anatomesh.app.warmup` "
+FIRST_RUN_NOTE = ("first run: compiling Anatomesh's kernels once (1-2 min; `python -m anatomesh.app.warmup` "
                   "does it ahead), later runs are fast")
 
 
