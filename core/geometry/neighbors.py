@@ -27,6 +27,7 @@ import numpy as np
 
 from . import _neighbors_kernels as _k
 from ..model.errors import AnatomeshError
+from ..model.fingerprint import sample_fingerprint
 
 CSR = Tuple[np.ndarray, np.ndarray]
 
@@ -204,7 +205,7 @@ class MeshStructure:
         arr = np.asarray(face_groups)
         if arr.size != self.n_faces:
             raise AnatomeshError(f"face_groups has {arr.size} entries for {self.n_faces} faces")
-        sample = _fingerprint(arr.reshape(-1))
+        sample = sample_fingerprint(arr)
         last = self._groups_seen
         if last is not None and last[0]() is face_groups and last[1] == sample:
             return last[2]
@@ -237,16 +238,6 @@ _CACHE: "OrderedDict[tuple, tuple]" = OrderedDict()
 _CACHE_SIZE = 4
 
 
-def _fingerprint(a: np.ndarray) -> str:
-    """Cheap content check: a hash of up to ~4000 evenly spaced rows plus the last one."""
-    step = max(1, a.shape[0] // 4096)
-    h = hashlib.blake2b(digest_size=16)
-    h.update(np.ascontiguousarray(a[::step]).tobytes())
-    if a.shape[0]:
-        h.update(np.ascontiguousarray(a[-1]).tobytes())
-    return h.hexdigest()
-
-
 def structure(faces: np.ndarray, n_vertices: Optional[int] = None) -> MeshStructure:
     """The :class:`MeshStructure` of ``faces``, built once and cached.
 
@@ -265,7 +256,7 @@ def structure(faces: np.ndarray, n_vertices: Optional[int] = None) -> MeshStruct
         n_vertices = int(f.max()) + 1 if f.size else 0
     key = (id(faces), f.shape, int(n_vertices))
     hit = _CACHE.get(key)
-    fp = _fingerprint(f) if f.ndim == 2 else ""
+    fp = sample_fingerprint(f)
     if hit is not None:
         ref, fp_cached, s = hit
         if ref() is faces and fp_cached == fp:

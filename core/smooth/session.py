@@ -39,7 +39,7 @@ from .guards import VolumeRegions, component_regions, fold_reference, unfold_in_
 from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
 from .shell_measures import ShellMeasures, shell_key, shell_warnings
-from .untangle import rows_of, untangle as untangle_crossings
+from .untangle import faces_around, untangle as untangle_crossings
 from ..geometry.face_pairs import FaceBoxes
 from ..geometry.neighbors import MeshStructure
 from ..model.errors import AnatomeshError
@@ -286,10 +286,9 @@ class SmoothingSession:
             if moved == 0:
                 break
             unfolded += moved
-            active = np.zeros(s.n_faces, np.bool_)
-            active[rows_of(s.vf_offsets, s.vf, np.flatnonzero(touched))] = True
             out, info = untangle_crossings(pos.astype(np.float32), self.surfaces.vertices,
-                                           self.faces, pairs=pairs, structure=s, active=active)
+                                           self.faces, pairs=pairs, structure=s,
+                                           active=faces_around(s, np.flatnonzero(touched)))
             left = info["crossings_left"]
         return out, unfolded, left
 

@@ -75,9 +75,7 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
         v[ring] = r[ring] + t * (v[ring] - r[ring])
         info["rounds"] = k + 1
         # every crossing face was moved: a pair can cross now only if one of its faces moved
-        active = np.zeros(len(f), bool)
-        active[rows_of(s.vf_offsets, s.vf, ring)] = True
-        found = crossings(active)
+        found = crossings(faces_around(s, ring))
     info["moved_vertices"] = int(moved.sum())
     info["crossings_left"] = int(len(found))
     return v, info
@@ -89,6 +87,13 @@ def rows_of(offsets: np.ndarray, values: np.ndarray, rows: np.ndarray) -> np.nda
     counts = offsets[rows + 1] - offsets[rows]
     first = np.repeat(offsets[rows] - np.cumsum(counts) + counts, counts)
     return values[first + np.arange(counts.sum())]
+
+
+def faces_around(s: MeshStructure, vertices: np.ndarray) -> np.ndarray:
+    """(M,) bool: the faces with a corner among ``vertices`` (indices)."""
+    active = np.zeros(s.n_faces, bool)
+    active[rows_of(s.vf_offsets, s.vf, vertices)] = True
+    return active
 
 
 def one_ring_of(s: MeshStructure, seeds: np.ndarray) -> np.ndarray:
