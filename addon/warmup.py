@@ -1,12 +1,14 @@
 """First run in Blender: compile the numba kernels in a background process, with a status line.
 
-numba compiles each kernel the first time it runs (2.5-4 min in all on a fresh install, 2 cores) and would
+numba compiles each kernel the first time it runs (~3 min in all on a fresh install, 2 cores) and would
 freeze Blender meanwhile. So once the extension is enabled, :func:`start` launches Blender's own
 Python (``sys.executable``) on :mod:`anatomesh.app.warmup`, imported under the add-on's own
 package name (``bl_ext.<repo>.anatomesh``): numba's cache, next to the sources in
 ``__pycache__``, remembers the module name a kernel was compiled under, so the add-on then loads
-exactly what the background process compiled. ``NUMBA_CACHE_DIR`` is never set here (the
-process inherits the environment as it is).
+exactly what the background process compiled. That process shares the compiling with a second
+one it starts (:data:`anatomesh.app.warmup.LANES`, both at low priority), so label maps can be
+extracted after ~12 s on 2 cores. ``NUMBA_CACHE_DIR`` is never set here (the processes inherit
+the environment as it is).
 
 A timer reads the process's progress lines into :data:`STATE`; the Import panel draws it
 (:func:`draw_status`). Operators that need kernels call :func:`defer` first: while the

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from llvmlite import ir
 from numba import njit, prange, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 # error_model="numpy": a division by zero gives inf/nan (handled) instead of raising
 _parallel = njit(cache=True, parallel=True, error_model="numpy")  # prange over slabs
@@ -57,10 +57,30 @@ _ALL = np.uint64(0xFFFFFFFFFFFFFFFF)
 _S63 = np.uint64(63)
 
 
-# Bit helpers as LLVM intrinsics: single instructions, and no numba-level inlining to compile.
-@intrinsic
-def _pc(typingctx, x):
+# Bit helpers: LLVM intrinsics in a kernel (single instructions, no numba-level inlining to
+# compile), plain integer arithmetic outside numba (the warm-up's lanes run kernels as Python).
+def _pc(x):
     """Number of set bits of a uint64, as int64 (LLVM ctpop: one POPCNT instruction)."""
+    return np.int64(bin(int(x)).count("1"))
+
+
+def _ctz(x):
+    """Index of the lowest set bit of a non-zero uint64, as int64 (LLVM cttz)."""
+    return np.int64((int(x) & -int(x)).bit_length() - 1)
+
+
+def _bit(w, b):
+    """Bit b (0..63) of the uint64 w, as int64 0 or 1."""
+    return np.int64((int(w) >> int(b)) & 1)
+
+
+def _low_mask(b):
+    """uint64 with bits 0 .. b-1 set (b in 0..63)."""
+    return np.uint64((1 << int(b)) - 1)
+
+
+@intrinsic
+def _llvm_pc(typingctx, x):
     if x != types.uint64:
         return None
 
@@ -71,8 +91,7 @@ def _pc(typingctx, x):
 
 
 @intrinsic
-def _ctz(typingctx, x):
-    """Index of the lowest set bit of a non-zero uint64, as int64 (LLVM cttz)."""
+def _llvm_ctz(typingctx, x):
     if x != types.uint64:
         return None
 
@@ -83,8 +102,7 @@ def _ctz(typingctx, x):
 
 
 @intrinsic
-def _bit(typingctx, w, b):
-    """Bit b (0..63) of the uint64 w, as int64 0 or 1."""
+def _llvm_bit(typingctx, w, b):
     if w != types.uint64 or not isinstance(b, types.Integer):
         return None
 
@@ -96,8 +114,7 @@ def _bit(typingctx, w, b):
 
 
 @intrinsic
-def _low_mask(typingctx, b):
-    """uint64 with bits 0 .. b-1 set (b in 0..63)."""
+def _llvm_low_mask(typingctx, b):
     if not isinstance(b, types.Integer):
         return None
 
@@ -107,6 +124,12 @@ def _low_mask(typingctx, b):
         return builder.sub(builder.shl(one, shift), one)
 
     return types.uint64(b), codegen
+
+
+overload(_pc)(lambda x: lambda x: _llvm_pc(x))
+overload(_ctz)(lambda x: lambda x: _llvm_ctz(x))
+overload(_bit)(lambda w, b: lambda w, b: _llvm_bit(w, b))
+overload(_low_mask)(lambda b: lambda b: _llvm_low_mask(b))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -216,7 +216,7 @@ def _config(P, a, b, c, L):
             | (np.int64(r01[c] == L) << 6) | (np.int64(r11[c] == L) << 7))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mask8(v0, v1, v2, v3, v4, v5, v6, v7, x):
     """8-bit mask of the values equal to x."""
     return (np.int64(v0 == x) | (np.int64(v1 == x) << 1) | (np.int64(v2 == x) << 2)
@@ -224,7 +224,7 @@ def _mask8(v0, v1, v2, v3, v4, v5, v6, v7, x):
             | (np.int64(v6 == x) << 6) | (np.int64(v7 == x) << 7))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _next_label(v0, v1, v2, v3, v4, v5, v6, v7, covered, x):
     """The value of the lowest voxel not in ``covered`` (``x`` if all are): a select chain."""
     x = v7 if (covered & 128) == 0 else x
@@ -241,8 +241,9 @@ def _next_label(v0, v1, v2, v3, v4, v5, v6, v7, covered, x):
 def _is_complex(P, a, b, c, bg, needs):
     """1 when some label at lattice point (a, b, c) has a config that may need vertex copies.
 
-    Hot (once per vertex): scalar loads, selects and bit masks only — no array views and no
-    calls, which would cost numba reference counting and a real function call per vertex."""
+    Hot (once per vertex): scalar loads, selects and bit masks only — no array views, which would
+    cost numba reference counting per vertex. The scalar helpers are ordinary calls: LLVM inlines
+    them (same speed as numba's ``inline="always"``, which compiled 1 s slower)."""
     # local voxel q = u + 2 v + 4 w is voxel (a - 1 + u, b - 1 + v, c - 1 + w)
     v0 = P[a - 1, b - 1, c - 1]
     v1 = P[a, b - 1, c - 1]
@@ -265,7 +266,7 @@ def _is_complex(P, a, b, c, bg, needs):
     return np.uint8(result)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _quad(faces, labels, t, q0, q1, q2, q3, inside, outside, forward):
     """Write quad (q0, q1, q2, q3) as triangles 2t, 2t+1 (diagonal q0-q2), reversed if not
     ``forward``."""
@@ -279,7 +280,7 @@ def _quad(faces, labels, t, q0, q1, q2, q3, inside, outside, forward):
     labels[2 * t + 1, 0] = inside; labels[2 * t + 1, 1] = outside
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _orient(lo, hi, bg, flip):
     """(inside, outside, forward): inside is the low-side label unless it is background."""
     if lo != bg:

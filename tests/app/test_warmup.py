@@ -1,5 +1,6 @@
 """The warm-up (app/warmup.py): a cold cache compiles into a fresh folder and the next process
-loads from it; the CLI says when it compiles; `inspect` loads only what it needs."""
+loads from it; two processes share the compiling (a kernel the other claimed runs as Python);
+the CLI says when it compiles; `inspect` loads only what it needs."""
 from __future__ import annotations
 
 import json
@@ -8,9 +9,13 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 from conftest import SAMPLE
+from numba.core.dispatcher import Dispatcher
 
 from anatomesh.app import warmup
+
+_ORIGINAL = Dispatcher._compile_for_args
 
 
 def _run(args, cache=None, **kw):
@@ -73,3 +78,51 @@ def test_steps_are_known_and_ordered_for_a_first_session():
         assert "no such step" in str(err)
     else:
         raise AssertionError("an unknown step must be refused")
+
+
+def test_a_kernel_another_lane_claimed_runs_as_python_with_the_same_result(tmp_path):
+    from anatomesh.core.io._values_kernels import add_counts
+
+    flat = np.array([3, 1, 3, 2, 3, 9, 1], np.uint64)  # a type no code path compiles it for
+    counts = np.zeros(9, np.int64)
+    before = list(add_counts.signatures)
+    other_lane = warmup._claim(tmp_path, add_counts.py_func, warmup._types(add_counts, (flat, 1, counts)))
+    assert other_lane
+    with warmup.sharing_kernels(tmp_path), warmup.counting_compiles() as compiled:
+        add_counts(flat, 1, counts)
+    assert compiled == [] and add_counts.signatures == before  # ran as Python, compiled nothing
+    assert counts.tolist() == np.bincount(flat.astype(np.int64) - 1, minlength=9).tolist()
+    assert Dispatcher._compile_for_args is _ORIGINAL  # numba is as it was after the block
+
+
+def test_a_kernel_nobody_claimed_is_claimed_and_compiled(tmp_path):
+    from anatomesh.core.io._values_kernels import add_counts
+
+    flat = np.array([5, 4, 4], np.int8)  # int8: no code path compiles it for this type either
+    counts = np.zeros(2, np.int64)
+    with warmup.sharing_kernels(tmp_path):
+        add_counts(flat, 4, counts)
+    assert counts.tolist() == [2, 1]
+    # compiled (or loaded from numba's cache on a later test run), not run as Python
+    assert any(sig.args[0].dtype.name == "int8" for sig in add_counts.nopython_signatures)
+    assert not warmup._claim(tmp_path, add_counts.py_func, warmup._types(add_counts, (flat, 4, counts)))
+
+
+def test_two_lanes_share_a_cold_first_run_and_the_first_extraction_compiles_nothing(tmp_path):
+    cache = tmp_path / "numba-cache"
+    first = _run(["-m", "anatomesh.app.warmup", "--steps", "reading,label surfaces", "--lanes", "2"],
+                 cache)
+    assert first.returncode == 0, first.stderr
+    starts = [line for line in first.stdout.splitlines() if line.startswith("warmup ")]
+    assert starts[:2] == ["warmup 1/2 reading", "warmup 2/2 label surfaces"]
+    by_lane = re.search(r"by lane: (\d+), (\d+)", first.stdout).groups()
+    assert all(int(n) > 0 for n in by_lane), first.stdout  # both lanes compiled a share
+    code = ("from anatomesh.app.warmup import counting_compiles\n"
+            "from anatomesh.core.io import load\n"
+            "from anatomesh.core.extract.multilabel import label_surfaces\n"
+            "with counting_compiles() as names:\n"
+            f"    shells = label_surfaces(load({str(SAMPLE / 'example_seg.nii.gz')!r})).shells()\n"
+            "print('SHELLS', len(shells), 'COMPILED', names)")
+    after = _run(["-c", code], cache)
+    assert after.returncode == 0, after.stderr
+    assert "COMPILED []" in after.stdout and "SHELLS 0" not in after.stdout
