@@ -12,9 +12,6 @@ from .common import parse_list
 from .ui import presets
 
 
-_KERNELS_WARM = False
-
-
 def fill_lists(settings, volume) -> None:
     """Put the volume's labels (present ones) or its isovalue presets into the scene settings."""
     settings.labels.clear()
@@ -166,14 +163,17 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
     add them as objects in a new collection; ``looks`` {value: (name, colour)} overrides the
     names and colours (the Labels panel's rows). Not smoothed yet (:func:`live.smooth_collection`)."""
     from ..app import stages
+    from ..app.warmup import announce_compiling
 
-    global _KERNELS_WARM
-    if not _KERNELS_WARM:
-        note = "first run: compiling kernels once (numba), later runs are fast"
+    def first_run(note: str) -> None:  # only when a kernel really compiles here
         print(f"Anatomesh: {note}")
         if progress is not None:
             progress(0.0, note)
-    layers = [stages.extract(layer, lrecipe, progress) for layer, lrecipe in stages.layers_of(volume, recipe)]
+
+    with announce_compiling(note="first run: compiling kernels once (numba), later runs are fast",
+                            say=first_run):
+        layers = [stages.extract(layer, lrecipe, progress)
+                  for layer, lrecipe in stages.layers_of(volume, recipe)]
     items = [(m, k) for k, sset in enumerate(layers) for m in sset.shells() if m.n_faces]
     warnings = [w for sset in layers for w in sset.warnings]
     if not volume.is_label_map:
@@ -182,7 +182,6 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
                      for lv in recipe.levels if float(lv) not in made]
     coll = scan_to_scene(context, volume, items, layers, warnings, render_method, looks)
     group_layers(coll, volume)
-    _KERNELS_WARM = True
     return coll
 
 

@@ -80,15 +80,17 @@ def warm_up(steps: Optional[List[str]] = None,
 
 
 @contextmanager
-def announce_compiling(stream=None, note: str = FIRST_RUN_NOTE):
-    """Within the block, say ``note`` once on ``stream`` (default stderr) when numba starts
-    compiling an Anatomesh kernel, i.e. when the cache is cold (a cache hit says nothing)."""
-    def say(func, types) -> None:
+def announce_compiling(stream=None, note: str = FIRST_RUN_NOTE,
+                       say: Optional[Callable[[str], None]] = None):
+    """Within the block, say ``note`` once on ``stream`` (default stderr), or by calling
+    ``say(note)``, when numba starts compiling an Anatomesh kernel, i.e. when the cache is cold
+    (a cache hit says nothing)."""
+    def write(text: str) -> None:
         out = stream or sys.stderr
-        out.write(f"\n{note}\n" if getattr(out, "isatty", lambda: False)() else f"{note}\n")
+        out.write(f"\n{text}\n" if getattr(out, "isatty", lambda: False)() else f"{text}\n")
         out.flush()
 
-    with _on_compile(say, once=True):
+    with _on_compile(lambda func, types: (say or write)(note), once=True):
         yield
 
 
