@@ -31,11 +31,11 @@ view bumps the parent's reference count atomically, which stalls two threads sha
 prange index is passed on as int64 (numba may type it unsigned, and unsigned + signed → float).
 The triangle writer copies a fixed 15 table entries per cell (unrolled, unsigned indices) and
 lets the next cell overwrite the excess, instead of a loop whose data-dependent exit the branch
-predictor misses once per cell (about a quarter of that pass on the chest CT). Without capping
-the vertex writer runs one loop per edge axis with the axis a literal and no inside-grid tests,
-so each inlined copy of :func:`_vertex` is specialised: 12-28 % less CPU in that pass on the
-chest CT than one loop over a run-time axis, which the capped writer keeps (each specialised
-copy adds seconds of compilation on a cold cache). Sharing endpoint gradients between edges
+predictor misses once per cell (about a quarter of that pass on the chest CT). The vertex
+writer runs one loop over a run-time axis, with capping a run-time flag, around one inlined copy
+of :func:`_vertex`: one loop per literal axis, specialised without capping, was 12-28 % faster
+in that pass (5 % of the whole isosurface on the chest CT: 37.5 against 39.5 ms) but each
+specialised copy compiled for seconds, 10 s in all on a cold cache (the first run). Sharing endpoint gradients between edges
 (computed once per slab into row buffers: 28 % fewer evaluations at the chest CT's skin)
 measured 25-35 % slower: inline, the gradient loads overlap with the division and square-root
 latency of each vertex; in a pass of their own they do not, and the buffer traffic comes on top.
@@ -305,8 +305,7 @@ def _vertex(v, level, t_min, axis, x, y, z, m, n, out_v, out_n, idx, capping):
     m : 12-tuple, row-major (3, 4) map table frame (x, y, z, 1) → mm; n : 9-tuple, row-major
     inverse transpose of its 3x3 part. With ``capping`` one endpoint may lie outside the grid:
     the vertex then sits ``t_min`` voxel from the inside endpoint, its normal points out of the
-    grid; without it both endpoints are inside (no checks). Literal ``axis`` and ``capping``
-    specialise the inlined copy.
+    grid; without it both endpoints are inside.
     """
     nz, ny, nx = v.shape
     dx = 1 if axis == 0 else 0
@@ -367,51 +366,10 @@ def emit_vertices(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, slab_start
 
 @_serial
 def _vertices_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz):
-    """The vertices of slab kz from vertex ``idx`` on."""
-    if pad == 0:
-        _open_slab(v, bits, level, t_min, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz)
-    else:
-        _capped_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz)
-
-
-@_serial
-def _open_slab(v, bits, level, t_min, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz):
-    """No padding: every edge lies inside the grid. One loop per axis, ``axis`` a literal."""
-    nzv, nyv, n_words = bits.shape
-    last = _last_mask(v.shape[2], n_words)
-    k1 = min(kz + 1, nzv - 1)
-    for jy in range(nyv):
-        if n_xe[kz, jy] + n_ye[kz, jy] + n_ze[kz, jy] == 0:
-            continue
-        j1 = min(jy + 1, nyv - 1)
-        for wi in range(n_words):  # x-edges
-            d = bits[kz, jy, wi] ^ _shift1(bits, kz, jy, wi, n_words)
-            if wi == n_words - 1:
-                d &= last
-            while d:
-                b = _ctz(d)
-                d &= d - _ONE
-                _vertex(v, level, t_min, 0, wi * 64 + b, jy, kz, m, n, out_v, out_n, idx, False)
-                idx += 1
-        for wi in range(n_words):  # y-edges (to row Y+1; none on the last row: j1 == jy)
-            d = bits[kz, jy, wi] ^ bits[kz, j1, wi]
-            while d:
-                b = _ctz(d)
-                d &= d - _ONE
-                _vertex(v, level, t_min, 1, wi * 64 + b, jy, kz, m, n, out_v, out_n, idx, False)
-                idx += 1
-        for wi in range(n_words):  # z-edges (to row Z+1; none on the last slab: k1 == kz)
-            d = bits[kz, jy, wi] ^ bits[k1, jy, wi]
-            while d:
-                b = _ctz(d)
-                d &= d - _ONE
-                _vertex(v, level, t_min, 2, wi * 64 + b, jy, kz, m, n, out_v, out_n, idx, False)
-                idx += 1
-
-
-@_serial
-def _capped_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz):
-    """Padded grid (capping edges possible): one loop over a run-time axis (compiles faster)."""
+    """The vertices of slab kz from vertex ``idx`` on; with ``pad`` (a padded grid) an edge's
+    endpoint may lie outside the grid (a capping edge). One loop over a run-time axis and one
+    inlined vertex writer (compiles in a fifth of the time of a loop per literal axis, with and
+    without capping; 3-5 % slower)."""
     nzv, nyv, n_words = bits.shape
     last = _last_mask(v.shape[2] + 2 * pad, n_words)
     z = kz - pad
@@ -435,7 +393,7 @@ def _capped_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_v,
                     b = _ctz(d)
                     d &= d - _ONE
                     _vertex(v, level, t_min, axis, wi * 64 + b - pad, y, z, m, n, out_v, out_n, idx,
-                            True)
+                            pad != 0)
                     idx += 1
 
 

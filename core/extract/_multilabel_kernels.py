@@ -242,8 +242,8 @@ def _is_complex(P, a, b, c, bg, needs):
     """1 when some label at lattice point (a, b, c) has a config that may need vertex copies.
 
     Hot (once per vertex): scalar loads, selects and bit masks only — no array views, which would
-    cost numba reference counting per vertex. The scalar helpers are ordinary calls: LLVM inlines
-    them (same speed as numba's ``inline="always"``, which compiled 1 s slower)."""
+    cost numba reference counting per vertex. The scalar helpers are ordinary calls (measured at
+    the same speed as numba's ``inline="always"``, which compiled 1 s slower)."""
     # local voxel q = u + 2 v + 4 w is voxel (a - 1 + u, b - 1 + v, c - 1 + w)
     v0 = P[a - 1, b - 1, c - 1]
     v1 = P[a, b - 1, c - 1]
