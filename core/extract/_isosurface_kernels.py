@@ -35,10 +35,11 @@ predictor misses once per cell (about a quarter of that pass on the chest CT). T
 writer runs one loop over a run-time axis, with capping a run-time flag, around one inlined copy
 of :func:`_vertex`: one loop per literal axis, specialised without capping, was 12-28 % faster
 in that pass (5 % of the whole isosurface on the chest CT: 37.5 against 39.5 ms) but each
-specialised copy compiled for seconds, 10 s in all on a cold cache (the first run). Sharing endpoint gradients between edges
-(computed once per slab into row buffers: 28 % fewer evaluations at the chest CT's skin)
-measured 25-35 % slower: inline, the gradient loads overlap with the division and square-root
-latency of each vertex; in a pass of their own they do not, and the buffer traffic comes on top.
+specialised copy compiled for seconds, 10 s in all on a cold cache (the first run). Sharing
+endpoint gradients between edges (computed once per slab into row buffers: 28 % fewer
+evaluations at the chest CT's skin) measured 25-35 % slower: inline, the gradient loads overlap
+with the division and square-root latency of each vertex; in a pass of their own they do not,
+and the buffer traffic comes on top.
 """
 from __future__ import annotations
 
@@ -126,6 +127,7 @@ def _llvm_low_mask(typingctx, b):
     return types.uint64(b), codegen
 
 
+# in a kernel, each helper above is its intrinsic
 overload(_pc)(lambda x: lambda x: _llvm_pc(x))
 overload(_ctz)(lambda x: lambda x: _llvm_ctz(x))
 overload(_bit)(lambda w, b: lambda w, b: _llvm_bit(w, b))
