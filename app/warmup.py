@@ -107,9 +107,10 @@ def counting_compiles():
 def sharing_kernels(claims: Path):
     """Within the block, share the compiling with the other lanes of a warm-up (processes with
     the same ``claims`` folder): a call of one of our kernels that numba would compile (a cache
-    miss) compiles only if this process claims (kernel, argument types) first; else the kernel
-    runs as plain Python (its ``py_func``), and so does everything it calls. Kernels compiled
-    inside another kernel's compile are claimed too, so no other lane compiles them again."""
+    miss) compiles only if this process claims (kernel, argument types) first; else it is loaded
+    if numba's cache holds it already, or runs as plain Python (its ``py_func``), and so does
+    everything it calls. Kernels compiled inside another kernel's compile are claimed too, so no
+    other lane compiles them again."""
     from numba.core.dispatcher import Dispatcher
 
     original = Dispatcher._compile_for_args
@@ -125,12 +126,18 @@ def sharing_kernels(claims: Path):
                 state.depth -= 1
         return call
 
+    def as_python(dispatcher, args) -> bool:
+        """Called from a kernel run as Python; or another lane compiles it (its claim) and
+        numba's cache does not hold it (yet)."""
+        if getattr(state, "depth", 0):
+            return True
+        return not _claim(claims, dispatcher.py_func, _types(dispatcher, args)) \
+            and not _in_cache(dispatcher, args)
+
     def compile_or_interpret(self, *args, **kws):
-        func = self.py_func
-        if func.__module__.startswith(package + ".") and (
-                getattr(state, "depth", 0) or not _claim(claims, func, _types(self, args))):
-            return interpreted(func)  # numba's dispatcher calls what this returns
-        return original(self, *args, **kws)
+        if self.py_func.__module__.startswith(package + ".") and as_python(self, args):
+            return interpreted(self.py_func)  # numba's dispatcher calls what this returns
+        return original(self, *args, **kws)  # compiles, or loads from numba's cache
 
     Dispatcher._compile_for_args = compile_or_interpret
     try:
@@ -147,6 +154,15 @@ def _types(dispatcher, args) -> tuple:
 
     return tuple(Omitted(a.value) if isinstance(a, OmittedArg) else dispatcher.typeof_pyval(a)
                  for a in args)
+
+
+def _in_cache(dispatcher, args) -> bool:
+    """True when numba's disk cache holds ``dispatcher`` for these arguments (loading it is
+    quicker than running a big kernel as Python, on a warm cache)."""
+    try:
+        return dispatcher._cache.load_overload(_types(dispatcher, args), dispatcher.targetctx) is not None
+    except Exception:  # no cache for this kernel, or one numba cannot read: run it as Python
+        return False
 
 
 def _claim(claims: Path, func, types) -> bool:

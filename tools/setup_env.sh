@@ -57,5 +57,5 @@ fi
 # every process would otherwise compile ~250 modules again (~0.2 s per command)
 "$VENV/bin/python" -m compileall -q core app addon >/dev/null || true
 # numba's kernels, compiled once into the cache next to the sources (two processes share the
-# work: ~2 min on 2 cores the first time, ~3 s to check later)
+# work: ~2 min on 2 cores the first time, ~5 s to check later)
 "$VENV/bin/python" -m anatomesh.app.warmup --quiet || echo "warning: the kernel warm-up failed; kernels compile on first use" >&2
