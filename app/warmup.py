@@ -148,12 +148,8 @@ def sharing_kernels(claims: Path):
 
 
 def _types(dispatcher, args) -> tuple:
-    """numba's types of a call's arguments (what it compiles for)."""
-    from numba.core.dispatcher import OmittedArg
-    from numba.core.types import Omitted
-
-    return tuple(Omitted(a.value) if isinstance(a, OmittedArg) else dispatcher.typeof_pyval(a)
-                 for a in args)
+    """numba's types of a call's arguments (what it compiles for; omitted defaults included)."""
+    return tuple(dispatcher.typeof_pyval(a) for a in args)
 
 
 def _in_cache(dispatcher, args) -> bool:
