@@ -173,42 +173,37 @@ def _line_axis(n1x, n1y, n1z, n2x, n2y, n2z):
 # ---------------------------------------------------------------------------------------------
 # static candidate pairs: buckets by the cell of each face's extent's low corner
 # ---------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True)
-def extents(centres, faces, half):
-    """``(lo, hi)`` (M, 3): bounding box of each face's corner boxes ``centre ± half``."""
-    m = faces.shape[0]
-    lo = np.empty((m, 3))
-    hi = np.empty((m, 3))
-    for f in prange(m):
-        for c in range(3):
-            x0, x1, x2 = centres[faces[f, 0], c], centres[faces[f, 1], c], centres[faces[f, 2], c]
-            lo[f, c] = min(x0, min(x1, x2)) - half[c]
-            hi[f, c] = max(x0, max(x1, x2)) + half[c]
-    return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _extent(centres, faces, half, f, c):
+    """Face f's extent along axis c: the (min, max) of its corners' box centres ∓ ``half[c]``."""
+    x0, x1, x2 = centres[faces[f, 0], c], centres[faces[f, 1], c], centres[faces[f, 2], c]
+    return min(x0, min(x1, x2)) - half[c], max(x0, max(x1, x2)) + half[c]
 
 
 @njit(cache=True)
-def homes(lo, hi):
-    """Home cell ``floor(lo)`` shifted to start at 0, and how far up (in cells) a partner's home
-    may lie, ``ceil(hi) − 1 − floor(lo)``, per face; with the largest reach ``back`` and the home
-    cells per axis ``dims``: ``(home, reach (M, 3) int32, back, dims (3,) int64)``."""
-    m = lo.shape[0]
-    origin = np.zeros(3, np.int64)
-    top = np.zeros(3, np.int64)
-    back = np.zeros(3, np.int64)
+def homes(centres, faces, half):
+    """Home cell of each face: the floor of its extent's low corner, shifted so the lowest is 0.
+    Returns ``(home (M, 3) int32, origin, back, dims (3,) int64)``: the shift, the largest reach
+    (how far up, in cells, a partner's home may lie: ``ceil(hi) − 1 − floor(lo)``) and the home
+    cells per axis."""
+    m = faces.shape[0]
+    origin, top, back = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64)
     for c in range(3):
-        if m:
-            origin[c] = int(np.floor(lo[:, c].min()))
+        lowest = np.inf
+        for f in range(m):
+            lowest = min(lowest, _extent(centres, faces, half, f, c)[0])
+        origin[c] = int(np.floor(lowest)) if m else 0
     home = np.empty((m, 3), np.int32)
-    reach = np.empty((m, 3), np.int32)
     for f in range(m):
         for c in range(3):
-            base = int(np.floor(lo[f, c]))
+            lo, hi = _extent(centres, faces, half, f, c)
+            base = int(np.floor(lo))
             home[f, c] = base - origin[c]
-            reach[f, c] = int(np.ceil(hi[f, c])) - 1 - base
             top[c] = max(top[c], home[f, c])
-            back[c] = max(back[c], reach[f, c])
-    return home, reach, back, top + 1
+            back[c] = max(back[c], int(np.ceil(hi)) - 1 - base)
+    return home, origin, back, top + 1
 
 
 @njit(cache=True, inline="always")
@@ -230,17 +225,22 @@ def _up32(x):
 
 
 @njit(parallel=True, cache=True)
-def permuted(order, lo, hi, home, reach, faces):
-    """The rows of the five arrays in ``order`` (bucket order), in parallel; the extents as
-    float32 rounded outwards (they only grow: a candidate is never lost)."""
+def bucket_rows(order, centres, faces, half, origin):
+    """The faces in bucket ``order``, in parallel: extents ``(lo, hi)`` (M, 3) float32 rounded
+    outwards (an extent only grows: a candidate is never lost; their floor and ceiling are those
+    of the exact values), home cells, reaches (see :func:`homes`) and corners (M, 3) int32."""
     m = order.shape[0]
-    lo2, hi2 = np.empty(lo.shape, np.float32), np.empty(hi.shape, np.float32)
-    home2, reach2, faces2 = np.empty_like(home), np.empty_like(reach), np.empty_like(faces)
+    lo2, hi2 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32)
+    home2, reach2 = np.empty((m, 3), np.int32), np.empty((m, 3), np.int32)
+    faces2 = np.empty((m, 3), faces.dtype)
     for k in prange(m):
         f = order[k]
         for c in range(3):
-            lo2[k, c], hi2[k, c] = _down32(lo[f, c]), _up32(hi[f, c])
-            home2[k, c], reach2[k, c], faces2[k, c] = home[f, c], reach[f, c], faces[f, c]
+            lo, hi = _extent(centres, faces, half, f, c)
+            base = int(np.floor(lo))
+            lo2[k, c], hi2[k, c] = _down32(lo), _up32(hi)
+            home2[k, c], reach2[k, c] = base - origin[c], int(np.ceil(hi)) - 1 - base
+            faces2[k, c] = faces[f, c]
     return lo2, hi2, home2, reach2, faces2
 
 

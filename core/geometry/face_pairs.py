@@ -64,18 +64,22 @@ class FaceBoxes:
     """
 
     def __init__(self, faces: np.ndarray, centres: np.ndarray, half: Sequence[float]):
-        f = check_faces(faces, len(centres))
-        c = np.asarray(centres)
+        c = np.asarray(centres, np.float64)
+        if c.ndim != 2 or c.shape[1] != 3 or not np.all(np.isfinite(c)):
+            raise AnatomeshError(f"box centres must be finite (N, 3) positions, got shape {c.shape}")
+        f = check_faces(faces, len(c))
+        h = np.broadcast_to(np.asarray(half, np.float64), (3,))
+        if not np.all(h > 0):
+            raise AnatomeshError(f"box half extents must be positive, got {half}")
         # columns along the two axes the faces' order varies slowest in, rows sorted along the
         # fastest: bucket order then follows the face order (cheap to sort and to gather)
         axes = np.argsort(np.abs(np.diff(c[f[::max(1, len(f) // 4096), 0]], axis=0)).mean(axis=0)) \
             if len(f) > 1 else np.arange(3)
-        half = np.broadcast_to(np.asarray(half, np.float64), (3,))[axes]
-        lo, hi = face_extents(f, np.asarray(c, np.float64)[:, axes], half)
-        home, reach, back, dims = _k.homes(lo, hi)
+        c, h = np.ascontiguousarray(c[:, axes]), np.ascontiguousarray(h[axes])
+        home, origin, back, dims = _k.homes(c, f, h)
         start, order, z = _k.bucket_faces(home, dims)
-        rows = _k.permuted(order, lo, hi, home, reach, f)
-        del lo, hi, home, reach
+        del home  # memory: the rows are built in bucket order straight from the centres
+        rows = _k.bucket_rows(order, c, f, h, origin)
         self.faces = f
         self.buckets = Buckets(start, z, rows[0], rows[1], rows[2], rows[3], rows[4], order,
                                dims, back)
@@ -100,7 +104,7 @@ class FaceBoxes:
         """All candidate pairs (P, 2) int64 of face indices, smaller first, sorted."""
         offsets, partners = self.materialize()._pairs
         fid = self.buckets.fid
-        a = fid[np.repeat(np.arange(len(fid)), np.diff(offsets))]
+        a = fid[_csr_rows(offsets)]
         return _sorted_pairs(a, fid[partners])
 
     def crossings(self, vertices: np.ndarray, active: Optional[np.ndarray] = None,
@@ -135,7 +139,7 @@ class FaceBoxes:
         self._boxed = X.shape
         if self._pairs is None:
             offsets, partners = _k.sweep_csr(B, X, self._box, float(rel_eps))
-            rows = np.repeat(np.arange(len(f)), np.diff(offsets))
+            rows = _csr_rows(offsets)
             return _sorted_pairs(B.fid[rows], B.fid[partners])
         offsets, partners = self._pairs
         _k.test_pairs(X, B, offsets, partners, float(rel_eps), self._box, self._hit)
@@ -144,22 +148,16 @@ class FaceBoxes:
         return _sorted_pairs(B.fid[rows], B.fid[partners[t]])
 
 
+def _csr_rows(offsets: np.ndarray) -> np.ndarray:
+    """The row of every entry of a CSR with these (M + 1,) offsets, (offsets[-1],) int64; only
+    the rows with entries are listed (memory: a crossing sweep has a few among millions)."""
+    nz = np.flatnonzero(offsets[1:] != offsets[:-1])
+    return np.repeat(nz, offsets[nz + 1] - offsets[nz])
+
+
 def _sorted_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1).astype(np.int64)
     return out[np.lexsort((out[:, 1], out[:, 0]))]
-
-
-def face_extents(faces: np.ndarray, centres: np.ndarray,
-                 half: Sequence[float]) -> Tuple[np.ndarray, np.ndarray]:
-    """``(lo, hi)`` (M, 3) float64: the bounding box of each face's corner boxes
-    ``[centre − half, centre + half]`` (in the frame of ``centres``, e.g. voxel index)."""
-    c = np.ascontiguousarray(centres, np.float64)
-    if c.ndim != 2 or c.shape[1] != 3 or not np.all(np.isfinite(c)):
-        raise AnatomeshError(f"box centres must be finite (N, 3) positions, got shape {c.shape}")
-    h = np.ascontiguousarray(np.broadcast_to(np.asarray(half, np.float64), (3,)))
-    if not np.all(h > 0):
-        raise AnatomeshError(f"box half extents must be positive, got {half}")
-    return _k.extents(c, check_faces(faces, c.shape[0]), h)
 
 
 def candidate_pairs(faces: np.ndarray, centres: np.ndarray, half: Sequence[float]) -> FaceBoxes:

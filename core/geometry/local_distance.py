@@ -32,8 +32,8 @@ def _positions(v, n, what):
 
 
 def edge_neighbours(s: MeshStructure) -> np.ndarray:
-    """(M, 3) int64: the face across each edge of each face (−1 on an open edge)."""
-    out = np.empty((s.n_faces, 3), np.int64)
+    """(M, 3) int32: the face across each edge of each face (−1 on an open edge)."""
+    out = np.empty((s.n_faces, 3), np.int32)
     _k.edge_neighbours(s.faces, s.vf_offsets, s.vf, out)
     return out
 
@@ -64,8 +64,8 @@ def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
     at_vertices = np.empty(s.vf.shape[0])
     at_centroids = np.empty(s.n_faces)
     _k.incident_distances(p, v, s.faces, s.vf_offsets, s.vf, at_vertices)
-    nb = np.full((s.n_faces, 0), -1, np.int64) if near is None else \
-        np.ascontiguousarray(near, np.int64)
+    nb = np.full((s.n_faces, 0), -1, np.int32) if near is None else \
+        np.ascontiguousarray(near, np.int32)
     if nb.shape[0] != s.n_faces:
         raise AnatomeshError(f"near must have one row per face ({s.n_faces}), got {nb.shape}")
     _k.centroid_distances(p, v, s.faces, nb, at_centroids)

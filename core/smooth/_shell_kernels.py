@@ -17,11 +17,12 @@ def _angle(ax, ay, az, bx, by, bz):
 
 
 @njit(parallel=True, cache=True)
-def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_angle, angles):
-    """Per face at ``pos`` (N, 3) float64: area (mm²), signed volume of the tetrahedron
-    (origin, face) (mm³), turned over against the unnormalised normals ``ref`` (n · ref < 0),
-    degenerate (a repeated corner or zero area) and, when ``angles``, the smallest interior
-    angle (degrees)."""
+def face_measures(pos, faces, origin, ref, table, angles):
+    """Per face f at ``pos`` (N, 3) float64, into column f of ``table`` (7, M) float64: area
+    (mm²), signed volume of the tetrahedron (origin, face) (mm³), turned over against the
+    unnormalised normals ``ref`` (n · ref < 0: 1, else 0), degenerate (a repeated corner or zero
+    area: 1), the smallest interior angle (degrees; 0 unless ``angles``), that angle below 10°
+    (1), and 1 (the face count)."""
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         e1x, e1y, e1z = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
@@ -29,24 +30,33 @@ def face_measures(pos, faces, origin, ref, area, tet, flipped, degenerate, min_a
         nx = e1y * e2z - e1z * e2y
         ny = e1z * e2x - e1x * e2z
         nz = e1x * e2y - e1y * e2x
-        area[f] = 0.5 * math.sqrt(nx * nx + ny * ny + nz * nz)
-        tet[f] = (nx * (pos[a, 0] - origin[0]) + ny * (pos[a, 1] - origin[1])
-                  + nz * (pos[a, 2] - origin[2])) / 6.0
-        flipped[f] = nx * ref[f, 0] + ny * ref[f, 1] + nz * ref[f, 2] < 0.0
-        degenerate[f] = a == b or b == c or a == c or area[f] <= 0.0
-        if not angles:
-            continue
-        e3x, e3y, e3z = pos[c, 0] - pos[b, 0], pos[c, 1] - pos[b, 1], pos[c, 2] - pos[b, 2]
-        l1 = e1x * e1x + e1y * e1y + e1z * e1z  # the smallest angle faces the shortest edge
-        l2 = e2x * e2x + e2y * e2y + e2z * e2z
-        l3 = e3x * e3x + e3y * e3y + e3z * e3z
-        if l3 <= l1 and l3 <= l2:  # edge bc: the angle at a
-            t = _angle(e1x, e1y, e1z, e2x, e2y, e2z)
-        elif l2 <= l1:  # edge ca: the angle at b
-            t = _angle(-e1x, -e1y, -e1z, e3x, e3y, e3z)
-        else:  # edge ab: the angle at c
-            t = _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)
-        min_angle[f] = math.degrees(t)
+        area = 0.5 * math.sqrt(nx * nx + ny * ny + nz * nz)
+        table[0, f] = area
+        table[1, f] = (nx * (pos[a, 0] - origin[0]) + ny * (pos[a, 1] - origin[1])
+                       + nz * (pos[a, 2] - origin[2])) / 6.0
+        table[2, f] = 1.0 if nx * ref[f, 0] + ny * ref[f, 1] + nz * ref[f, 2] < 0.0 else 0.0
+        table[3, f] = 1.0 if a == b or b == c or a == c or area <= 0.0 else 0.0
+        table[6, f] = 1.0
+        t = 0.0
+        if angles:
+            t = math.degrees(_smallest_angle(e1x, e1y, e1z, e2x, e2y, e2z, pos[c, 0] - pos[b, 0],
+                                             pos[c, 1] - pos[b, 1], pos[c, 2] - pos[b, 2]))
+        table[4, f] = t
+        table[5, f] = 1.0 if t < 10.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _smallest_angle(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z):
+    """The smallest interior angle (radians) of the triangle with edges ab = e1, ac = e2,
+    bc = e3: the one facing the shortest edge."""
+    l1 = e1x * e1x + e1y * e1y + e1z * e1z
+    l2 = e2x * e2x + e2y * e2y + e2z * e2z
+    l3 = e3x * e3x + e3y * e3y + e3z * e3z
+    if l3 <= l1 and l3 <= l2:  # edge bc: the angle at a
+        return _angle(e1x, e1y, e1z, e2x, e2y, e2z)
+    if l2 <= l1:  # edge ca: the angle at b
+        return _angle(-e1x, -e1y, -e1z, e3x, e3y, e3z)
+    return _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)  # edge ab: the angle at c
 
 
 @njit(parallel=True, cache=True)
@@ -57,8 +67,8 @@ def corner_max(values, faces, out):
 
 
 @njit(cache=True)
-def label_sums(sides, per_face, signed, out):
-    """``out[k, j]`` += ``per_face[f, j]`` for each side of face f with label index
+def label_sums(sides, table, signed, out):
+    """``out[k, j]`` += ``table[j, f]`` for each side of face f with label index
     ``k = sides[f, side] >= 0``, negated on the outside when ``signed[j]``; zeroed first."""
     out[:, :] = 0.0
     for f in range(sides.shape[0]):
@@ -66,8 +76,8 @@ def label_sums(sides, per_face, signed, out):
             k = sides[f, side]
             if k < 0:
                 continue
-            for j in range(per_face.shape[1]):
-                x = per_face[f, j]
+            for j in range(table.shape[0]):
+                x = table[j, f]
                 out[k, j] += -x if (signed[j] and side == 1) else x
 
 

@@ -193,12 +193,15 @@ class SmoothingSession:
     def run(self, method: str = DEFAULT, *, constraint="auto", max_deviation: Optional[float] = None,
             junctions: bool = True, staircase="auto", damping_distance: Optional[float] = None,
             preserve_volume: Optional[bool] = None, fold_guard: bool = True, untangle: bool = True,
-            precision: str = "float64", progress: Optional[Progress] = None,
+            precision: str = "float64", progress: Optional[Progress] = None, keep: bool = True,
             **params) -> Tuple[np.ndarray, dict]:
         """Smooth the unsmoothed surfaces with these settings; see
         :func:`~anatomesh.core.smooth.driver.smooth_surfaces` for each setting. ``precision``:
         the arithmetic of the Taubin/Laplacian passes, "float64" or "float32" (live sliders:
-        within 1e-3 mm of float64); the guards always run in float64.
+        within 1e-3 mm of float64); the guards always run in float64. ``keep=False`` (one-shot
+        runs): each step's caches are freed as soon as the step is done (the passes' buffers
+        after the filter, the volume regions after the volume step, the face buckets at the
+        end), so the peak memory is the largest step's, not their sum.
 
         Returns ``(vertices (N, 3) float32 mm, info)`` with ``info = {"method", "params",
         "seconds", "warnings"}``."""
@@ -216,14 +219,13 @@ class SmoothingSession:
         c = self.constraint(preset_constraint if constraint == "auto" else constraint, max_deviation)
         kw = self._filter_args(name, p, c, junctions, staircase, damping_distance, precision)
         kw["progress"] = sub(progress, 0.0, 0.9) if preserve else progress
-        try:
-            pos = np.ascontiguousarray(FILTERS[name](self.rest, self.faces, **kw), np.float64)
-        except TypeError as e:  # an unknown keyword for this filter
-            raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
         cons = (c.anchored(self.rest) if c is not None else Constraint()).arrays(self.rest)
-        clamp(pos, cons)  # float32 passes round: back inside in float64
-        out, extra, warnings = self._guards(pos, c, cons, kw.get("gain"), preserve, fold_guard,
-                                            untangle, progress)
+        # the filtered positions go straight to the guards, which drop them when done (memory)
+        out, extra, warnings = self._guards(self._filtered(name, kw, cons, keep), c, cons,
+                                            kw.get("gain"), preserve, fold_guard, untangle,
+                                            progress, keep)
+        if not keep:
+            self.release()
         report(progress, 1.0, "smoothed")
         p.update(constraint=c, **{k: v for k, v in kw.items() if k.startswith("slice_")}, **extra)
         if precision != "float64":
@@ -244,9 +246,24 @@ class SmoothingSession:
             kw["precision"] = precision
         return kw
 
-    def _guards(self, pos, c, cons, gain, preserve, fold_guard, untangle, progress):
+    def _filtered(self, name: str, kw: dict, cons: tuple, keep: bool) -> np.ndarray:
+        """The filter's positions (N, 3) float64, clamped into the constraint in float64
+        (float32 passes round); ``keep=False``: the passes' buffers and junction groups are
+        freed."""
+        try:
+            pos = np.ascontiguousarray(FILTERS[name](self.rest, self.faces, **kw), np.float64)
+        except TypeError as e:  # an unknown keyword for this filter
+            raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
+        if not keep:
+            self.structure.release_buffers()
+            self._cache.pop("groups", None)
+        clamp(pos, cons)
+        return pos
+
+    def _guards(self, pos, c, cons, gain, preserve, fold_guard, untangle, progress, keep=True):
         """Fold guard, volume step, fold guard (float64, in place), then untangling on the
-        float32 positions the set keeps. Returns (float32 positions, params, warnings)."""
+        float32 positions the set keeps (``keep=False``: the volume regions freed after their
+        step). Returns (float32 positions, params, warnings)."""
         extra, warnings = {}, []
         unfolded = 0
         if fold_guard:
@@ -254,12 +271,15 @@ class SmoothingSession:
         if preserve:
             pos = self.regions().restore(pos, self.structure, cons,
                                          np.zeros(0) if gain is None else gain)
+            if not keep:
+                self._cache.pop("regions", None)
             if fold_guard:
                 unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
             extra["preserve_volume"] = True
         if fold_guard:
             extra["unfolded_vertices"] = unfolded
         out = pos.astype(np.float32)
+        del pos  # memory: untangling works on the float32 positions
         if untangle:
             report(progress, 0.97, "checking for crossing faces")
             pairs = self.boxes() if id(c) in self._cells else None
@@ -321,9 +341,7 @@ class SmoothingSession:
         measures when ``measure``; ``distances`` adds the Hausdorff and mean distances,
         ``topology`` each shell's topology).
         ``keep=False``: :meth:`release` the guards' caches before measuring (one-shot runs)."""
-        vertices, info = self.run(method, **settings)
-        if not keep:
-            self.release()
+        vertices, info = self.run(method, keep=keep, **settings)
         out = self.surfaces.copy_with_vertices(vertices)
         shells, warnings = {}, list(info["warnings"])
         if measure and info["method"] != "none":

@@ -27,8 +27,8 @@ from ..model.mesh import Mesh
 from ..model.surfaceset import SurfaceSet
 
 _TOPO_KEYS = ("components", "genus", "closed", "manifold", "oriented", "degenerate_faces")
-#: columns of the per-face table summed per label: area, signed volume, flipped, degenerate,
-#: smallest angle, angle below 10°, 1 (the face count)
+#: rows of the per-face table summed per label: area, signed volume, flipped, degenerate,
+#: smallest angle, angle below 10°, 1 (the face count); True: negated on the outside label
 _SIGNED = np.array([False, True, False, False, False, False, False])
 
 
@@ -53,7 +53,7 @@ class ShellMeasures:
                  reference: np.ndarray):
         self.surfaces, self.rest, self.s, self.reference = surfaces, rest, structure, reference
         self.values = surfaces.values()
-        index = np.full(max(self.values + [surfaces.background, 0]) + 1, -1, np.int64)
+        index = np.full(max(self.values + [surfaces.background, 0]) + 1, -1, np.int32)
         index[np.asarray(self.values, np.int64)] = np.arange(len(self.values))
         self.sides = np.ascontiguousarray(index[surfaces.face_labels])
         self.origin = rest[0] if len(rest) else np.zeros(3)
@@ -62,20 +62,15 @@ class ShellMeasures:
         self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._near: Optional[np.ndarray] = None
 
-    def _faces(self, pos: np.ndarray, angles: bool = True):
-        m = self.s.n_faces
-        cols = np.empty((m, 7))
-        area, tet, angle = np.empty(m), np.empty(m), np.zeros(m)
-        flipped, degenerate = np.empty(m, np.bool_), np.empty(m, np.bool_)
-        _k.face_measures(pos, self.s.faces, self.origin, self.reference, area, tet, flipped,
-                         degenerate, angle, angles)
-        cols[:, 0], cols[:, 1], cols[:, 2], cols[:, 3] = area, tet, flipped, degenerate
-        cols[:, 4], cols[:, 5], cols[:, 6] = angle, angle < 10.0, 1.0
-        return cols, angle
+    def _faces(self, pos: np.ndarray, angles: bool = True) -> np.ndarray:
+        """The per-face table (7, M) float64 at ``pos`` (rows: see ``_SIGNED``)."""
+        table = np.empty((7, self.s.n_faces))
+        _k.face_measures(pos, self.s.faces, self.origin, self.reference, table, angles)
+        return table
 
     def _sums(self, pos: np.ndarray) -> np.ndarray:
         out = np.empty((len(self.values), 7))
-        _k.label_sums(self.sides, self._faces(pos, angles=False)[0], _SIGNED, out)
+        _k.label_sums(self.sides, self._faces(pos, angles=False), _SIGNED, out)
         return out
 
     def topology_before(self) -> List[dict]:
@@ -91,15 +86,17 @@ class ShellMeasures:
         (without curvature) at float64 positions ``after``. ``topology=False``: the topology
         entries hold only ``degenerate_faces`` (smoothing moves vertices, never the faces:
         the rest cannot change), saving the per-shell topology pass."""
-        cols, angle = self._faces(after)
+        table = self._faces(after)
         now = np.empty((len(self.values), 7))
-        _k.label_sums(self.sides, cols, _SIGNED, now)
+        _k.label_sums(self.sides, table, _SIGNED, now)
+        angle = table[4].copy()
+        del table  # memory: summed
+        angles = self._angle_stats(angle)
         disp = np.linalg.norm(after - self.rest, axis=1)
         face_disp, worst_disp = np.empty(self.s.n_faces), np.empty(len(self.values))
         _k.corner_max(disp, self.s.faces, face_disp)
         _k.label_max(self.sides, face_disp, worst_disp)
         dist = self._distances(after) if distances else None
-        angles = self._angle_stats(angle)
         out = {}
         topologies = self.topology_before() if topology else \
             [{"degenerate_faces": int(d)} for d in self.before[:, 3]]
@@ -133,12 +130,11 @@ class ShellMeasures:
 
     def _angle_stats(self, angle: np.ndarray) -> np.ndarray:
         """(2, shells): the smallest face angle and its 1st percentile in each shell."""
-        if self._by_label is None:
+        if self._by_label is None:  # the faces of each label, in face order
             lab = self.sides.ravel()
-            occurrence = np.flatnonzero(lab >= 0)
-            order = np.argsort(lab[occurrence], kind="stable")
-            starts = np.searchsorted(lab[occurrence][order], np.arange(len(self.values) + 1))
-            self._by_label = (occurrence[order] // 2, starts)
+            order = np.argsort(lab, kind="stable")  # background (−1) first
+            starts = np.searchsorted(lab, np.arange(len(self.values) + 1), sorter=order)
+            self._by_label = ((order[starts[0]:] // 2).astype(np.int32), starts - starts[0])
         faces, starts = self._by_label
         per = angle[faces]
         out = np.zeros((2, len(self.values)))
@@ -158,6 +154,7 @@ class ShellMeasures:
             at_vertices, at_centroids = local_distances(a, b, self.s, self._near)
             _k.label_distances(self.sides, self.s.vf_offsets, self.s.vf, at_vertices,
                                at_centroids, worst, total, count)
+            del at_vertices, at_centroids  # memory: one direction's samples at a time
         return worst, total, count
 
 

@@ -46,6 +46,21 @@ def test_a_session_smooths_again_exactly_as_fresh_calls(map41):
         "totalsegmentator", "example_seg.nii.gz"))).vertices)  # the input is never modified
 
 
+def test_a_one_shot_run_frees_each_steps_caches_and_gives_the_same_surfaces(map41):
+    """keep=False (the CLI's driver): the passes' buffers, junction groups, volume regions and
+    face buckets are gone after the run (memory: the peak is the largest step's), the surfaces
+    and report are those of a session that keeps them."""
+    kept, kept_rep = SmoothingSession(map41).smooth("organ")
+    session = SmoothingSession(map41)
+    once, rep = session.smooth("organ", keep=False)
+    np.testing.assert_array_equal(once.vertices, kept.vertices)
+    assert rep.shells == kept_rep.shells and rep.params == kept_rep.params
+    assert not {"boxes", "regions", "groups"} & set(session._cache)
+    assert not session.structure._padded and not session.structure._buffers
+    again, _ = session.smooth("organ")  # rebuilt on demand
+    np.testing.assert_array_equal(again.vertices, kept.vertices)
+
+
 def test_default_on_the_61_label_map_keeps_every_guarantee(map61):
     """61/61 shells closed, no face crossing another (inside or between shells), volumes kept
     (median ~0, worst >= -3 %), every vertex in its voxel cell, close to the voxel surface (the
