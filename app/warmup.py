@@ -288,8 +288,9 @@ def _more_types(folder: Path) -> None:
 
 def _smoothing(folder: Path) -> None:
     """The default smoothing (:func:`anatomesh.app.stages.smooth`) of label surfaces (thick
-    slices: with the staircase pass; isotropic) and of an isosurface, and the cached session the
-    live sliders run (:class:`anatomesh.core.smooth.session.SmoothingSession`)."""
+    slices: with the staircase pass; isotropic) and of an isosurface, the cached session the
+    live sliders run (:class:`anatomesh.core.smooth.session.SmoothingSession`), and the rounds
+    that unfold and untangle again after untangling."""
     from ..core.extract.isosurface import isosurfaces
     from ..core.extract.multilabel import label_surfaces
     from ..core.model.surfaceset import SurfaceSet
@@ -304,6 +305,13 @@ def _smoothing(folder: Path) -> None:
     stages.smooth(SurfaceSet.from_meshes(iso, np.eye(4)), Recipe())
     method, settings = stages.smoothing(Recipe())
     SmoothingSession(s).run(method, **settings)
+    # the unfold and untangle rounds after an untangling that turned faces over (bone
+    # isosurfaces): a face turned over by swapping two of its corners
+    session = SmoothingSession(SurfaceSet.from_meshes(iso, np.eye(4)))
+    out = session.run(method, **settings)[0]
+    a, b = session.faces[0, :2]
+    out[[a, b]] = out[[b, a]]
+    session._unfold_untangled(out, session.boxes())
 
 
 def _decimation(folder: Path) -> None:
