@@ -173,21 +173,22 @@ def _line_axis(n1x, n1y, n1z, n2x, n2y, n2z):
 # ---------------------------------------------------------------------------------------------
 # static candidate pairs: buckets by the cell of each face's extent's low corner
 # ---------------------------------------------------------------------------------------------
-
-
 @njit(cache=True, inline="always")
 def _extent(centres, faces, half, f, c):
-    """Face f's extent along axis c: the (min, max) of its corners' box centres ∓ ``half[c]``."""
+    """Face f's extent along axis c, ``(lo, hi, cell, reach)``: the (min, max) of its corners'
+    box centres ∓ ``half[c]``, the cell of ``lo`` (its floor, not shifted) and how far up (in
+    cells) a partner's home may lie, ``ceil(hi) − 1 − floor(lo)``."""
     x0, x1, x2 = centres[faces[f, 0], c], centres[faces[f, 1], c], centres[faces[f, 2], c]
-    return min(x0, min(x1, x2)) - half[c], max(x0, max(x1, x2)) + half[c]
+    lo, hi = min(x0, min(x1, x2)) - half[c], max(x0, max(x1, x2)) + half[c]
+    cell = int(np.floor(lo))
+    return lo, hi, cell, int(np.ceil(hi)) - 1 - cell
 
 
 @njit(cache=True)
 def homes(centres, faces, half):
     """Home cell of each face: the floor of its extent's low corner, shifted so the lowest is 0.
     Returns ``(home (M, 3) int32, origin, back, dims (3,) int64)``: the shift, the largest reach
-    (how far up, in cells, a partner's home may lie: ``ceil(hi) − 1 − floor(lo)``) and the home
-    cells per axis."""
+    (see :func:`_extent`) and the home cells per axis."""
     m = faces.shape[0]
     origin, top, back = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64)
     for c in range(3):
@@ -198,11 +199,10 @@ def homes(centres, faces, half):
     home = np.empty((m, 3), np.int32)
     for f in range(m):
         for c in range(3):
-            lo, hi = _extent(centres, faces, half, f, c)
-            base = int(np.floor(lo))
-            home[f, c] = base - origin[c]
+            _, _, cell, reach = _extent(centres, faces, half, f, c)
+            home[f, c] = cell - origin[c]
             top[c] = max(top[c], home[f, c])
-            back[c] = max(back[c], int(np.ceil(hi)) - 1 - base)
+            back[c] = max(back[c], reach)
     return home, origin, back, top + 1
 
 
@@ -228,7 +228,7 @@ def _up32(x):
 def bucket_rows(order, centres, faces, half, origin):
     """The faces in bucket ``order``, in parallel: extents ``(lo, hi)`` (M, 3) float32 rounded
     outwards (an extent only grows: a candidate is never lost; their floor and ceiling are those
-    of the exact values), home cells, reaches (see :func:`homes`) and corners (M, 3) int32."""
+    of the exact values), home cells, reaches (see :func:`_extent`) and corners (M, 3) int32."""
     m = order.shape[0]
     lo2, hi2 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32)
     home2, reach2 = np.empty((m, 3), np.int32), np.empty((m, 3), np.int32)
@@ -236,10 +236,9 @@ def bucket_rows(order, centres, faces, half, origin):
     for k in prange(m):
         f = order[k]
         for c in range(3):
-            lo, hi = _extent(centres, faces, half, f, c)
-            base = int(np.floor(lo))
+            lo, hi, cell, reach = _extent(centres, faces, half, f, c)
             lo2[k, c], hi2[k, c] = _down32(lo), _up32(hi)
-            home2[k, c], reach2[k, c] = base - origin[c], int(np.ceil(hi)) - 1 - base
+            home2[k, c], reach2[k, c] = cell - origin[c], reach
             faces2[k, c] = faces[f, c]
     return lo2, hi2, home2, reach2, faces2
 
