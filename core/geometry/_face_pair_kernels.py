@@ -98,10 +98,11 @@ def _near_zero(x, eps):
 
 @njit(cache=True)
 def tri_tri(X, a0, a1, a2, b0, b1, b2, rel_eps):
-    """Do the triangles of rows (a0, a1, a2) and (b0, b1, b2) of ``X`` (N, 3) float64
-    intersect? Möller 1997; touching counts (plane distances below ``rel_eps`` times the size
-    are zero). Coordinates relative to the first corner, as ``tri_tri_intersect``."""
-    ox, oy, oz = X[a0, 0], X[a0, 1], X[a0, 2]
+    """Do the triangles of rows (a0, a1, a2) and (b0, b1, b2) of ``X`` (N, 3) float64 or
+    float32 intersect? Möller 1997; touching counts (plane distances below ``rel_eps`` times the
+    size are zero). Coordinates relative to the first corner, as ``tri_tri_intersect``, in
+    float64 (float32 positions convert exactly: the same decisions as their float64 copy)."""
+    ox, oy, oz = np.float64(X[a0, 0]), np.float64(X[a0, 1]), np.float64(X[a0, 2])
     v0x, v0y, v0z = X[a0, 0] - ox, X[a0, 1] - oy, X[a0, 2] - oz
     v1x, v1y, v1z = X[a1, 0] - ox, X[a1, 1] - oy, X[a1, 2] - oz
     v2x, v2y, v2z = X[a2, 0] - ox, X[a2, 1] - oy, X[a2, 2] - oz
@@ -187,8 +188,8 @@ def _extent(centres, faces, half, f, c):
 @njit(cache=True)
 def homes(centres, faces, half):
     """Home cell of each face: the floor of its extent's low corner, shifted so the lowest is 0.
-    Returns ``(home (M, 3) int32, origin, back, dims (3,) int64)``: the shift, the largest reach
-    (see :func:`_extent`) and the home cells per axis."""
+    Returns ``(home (M, 3) int32, back, dims (3,) int64)``: the largest reach (see
+    :func:`_extent`) and the home cells per axis."""
     m = faces.shape[0]
     origin, top, back = np.zeros(3, np.int64), np.zeros(3, np.int64), np.zeros(3, np.int64)
     for c in range(3):
@@ -203,7 +204,7 @@ def homes(centres, faces, half):
             home[f, c] = cell - origin[c]
             top[c] = max(top[c], home[f, c])
             back[c] = max(back[c], reach)
-    return home, origin, back, top + 1
+    return home, back, top + 1
 
 
 @njit(cache=True, inline="always")
@@ -225,22 +226,23 @@ def _up32(x):
 
 
 @njit(parallel=True, cache=True)
-def bucket_rows(order, centres, faces, half, origin):
+def bucket_rows(order, centres, faces, half):
     """The faces in bucket ``order``, in parallel: extents ``(lo, hi)`` (M, 3) float32 rounded
     outwards (an extent only grows: a candidate is never lost; their floor and ceiling are those
-    of the exact values), home cells, reaches (see :func:`_extent`) and corners (M, 3) int32."""
+    of the exact values), reaches (see :func:`_extent`) and corners (M, 3) int32 (a row's
+    home cell is its column and z)."""
     m = order.shape[0]
     lo2, hi2 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32)
-    home2, reach2 = np.empty((m, 3), np.int32), np.empty((m, 3), np.int32)
+    reach2 = np.empty((m, 3), np.int32)
     faces2 = np.empty((m, 3), faces.dtype)
     for k in prange(m):
         f = order[k]
         for c in range(3):
-            lo, hi, cell, reach = _extent(centres, faces, half, f, c)
+            lo, hi, _, reach = _extent(centres, faces, half, f, c)
             lo2[k, c], hi2[k, c] = _down32(lo), _up32(hi)
-            home2[k, c], reach2[k, c] = cell - origin[c], reach
+            reach2[k, c] = reach
             faces2[k, c] = faces[f, c]
-    return lo2, hi2, home2, reach2, faces2
+    return lo2, hi2, reach2, faces2
 
 
 @njit(cache=True)
@@ -308,13 +310,14 @@ def _forward_columns(c, dims, back):
 
 
 @njit(cache=True)
-def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
+def _column_sweep(c, B, X, box, rel_eps, offsets, out):
     """The pairs whose first face (bucket row) sits in column c: rows of the forward columns
     whose homes fall in its window (z by pointers that only move up), sharing no vertex. ``X``
     empty: those whose extents overlap with positive volume (the candidates); else those that
     cross at positions ``X`` (closed boxes ``box`` overlap, no corner at the same position,
-    Möller; a crossing pair's extents overlap, the window holds every candidate). Counts into ``counts[row]`` or, when ``out`` has entries, writes partner rows from
-    ``offsets[row]`` (rows without count skipped)."""
+    Möller; a crossing pair's extents overlap, the window holds every candidate). Counts into
+    ``offsets[row + 1]`` or, when ``out`` has entries, writes partner rows from ``offsets[row]``
+    (rows without partners skipped)."""
     start, z, lo, hi, reach, faces, fid = B.start, B.z, B.lo, B.hi, B.reach, B.faces, B.fid
     nb = _forward_columns(c, B.dims, B.back)
     ptr = np.empty(nb.shape[0], np.int64)
@@ -322,7 +325,7 @@ def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
         ptr[j] = start[nb[j, 0]]
     fill, test = out.shape[0] > 0, X.shape[0] > 0
     for k in range(start[c], start[c + 1]):
-        if fill and counts[k] == 0:
+        if fill and offsets[k + 1] == offsets[k]:
             continue
         n = 0
         for j in range(nb.shape[0]):
@@ -346,7 +349,7 @@ def _column_sweep(c, B, X, box, rel_eps, counts, offsets, out):
                     n += 1
                 k2 += 1
         if not fill:
-            counts[k] = n
+            offsets[k + 1] = n
 
 
 @njit(parallel=True, cache=True)
@@ -355,21 +358,33 @@ def sweep_csr(B, X, box, rel_eps):
     over all columns: candidate pairs (``X`` empty) or crossing pairs (each pair once)."""
     m = B.faces.shape[0]
     ncol = B.start.shape[0] - 1
-    counts = np.zeros(m, np.int64)
+    offsets = np.zeros(m + 1, np.int64)  # memory: the counts, then (summed in place) offsets
     none = np.zeros(0, np.int32)
     for c in prange(ncol):
         if B.start[c + 1] > B.start[c]:
-            _column_sweep(c, B, X, box, rel_eps, counts, counts, none)
-    offsets = np.zeros(m + 1, np.int64)
+            _column_sweep(c, B, X, box, rel_eps, offsets, none)
     for k in range(m):
-        offsets[k + 1] = offsets[k] + counts[k]
+        offsets[k + 1] += offsets[k]
     partners = np.empty(offsets[m], np.int32)
     if offsets[m] == 0:
         return offsets, partners
     for c in prange(ncol):
         if offsets[B.start[c + 1]] > offsets[B.start[c]]:
-            _column_sweep(c, B, X, box, rel_eps, counts, offsets, partners)
+            _column_sweep(c, B, X, box, rel_eps, offsets, partners)
     return offsets, partners
+
+
+@njit(cache=True)
+def _column_of(start, k):
+    """The column holding bucket row k: the last c with ``start[c] <= k`` (binary search)."""
+    lo, hi = 0, start.shape[0] - 1  # start[lo] <= k < start[hi]
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if start[mid] <= k:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 @njit(cache=True)
@@ -377,10 +392,12 @@ def _around(k, B, X, box, rel_eps, active, out, pos):
     """Crossing partners of bucket row k among all rows whose homes lie within ``back`` of its
     own (both directions); an active partner with a smaller row is left to that row. Writes
     partner rows at ``out[pos:]`` when ``out`` has entries; returns the count."""
-    start, z, home, dims, back, faces, fid = B.start, B.z, B.home, B.dims, B.back, B.faces, B.fid
+    start, z, dims, back, faces, fid = B.start, B.z, B.dims, B.back, B.faces, B.fid
+    column = _column_of(start, k)
+    hx, hy = column // dims[1], column % dims[1]
     n = 0
-    for x in range(max(home[k, 0] - back[0], 0), min(home[k, 0] + back[0], dims[0] - 1) + 1):
-        for y in range(max(home[k, 1] - back[1], 0), min(home[k, 1] + back[1], dims[1] - 1) + 1):
+    for x in range(max(hx - back[0], 0), min(hx + back[0], dims[0] - 1) + 1):
+        for y in range(max(hy - back[1], 0), min(hy + back[1], dims[1] - 1) + 1):
             c = x * dims[1] + y
             lo_k, hi_k = start[c], start[c + 1]
             while lo_k < hi_k:  # first row with z >= z_k − back

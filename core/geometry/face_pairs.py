@@ -37,7 +37,6 @@ class Buckets(NamedTuple):
     z: np.ndarray       #: (M,) int32: home z of each row
     lo: np.ndarray      #: (M, 3) float32: extent, low corner (rounded down)
     hi: np.ndarray      #: (M, 3) float32: extent, high corner (rounded up)
-    home: np.ndarray    #: (M, 3) int32: home cell
     reach: np.ndarray   #: (M, 3) int32: how far up a partner's home can be
     faces: np.ndarray   #: (M, 3) int32: corners
     fid: np.ndarray     #: (M,) int32: face index of each row
@@ -76,13 +75,12 @@ class FaceBoxes:
         axes = np.argsort(np.abs(np.diff(c[f[::max(1, len(f) // 4096), 0]], axis=0)).mean(axis=0)) \
             if len(f) > 1 else np.arange(3)
         c, h = np.ascontiguousarray(c[:, axes]), np.ascontiguousarray(h[axes])
-        home, origin, back, dims = _k.homes(c, f, h)
+        home, back, dims = _k.homes(c, f, h)
         start, order, z = _k.bucket_faces(home, dims)
         del home  # memory: the rows are built in bucket order straight from the centres
-        rows = _k.bucket_rows(order, c, f, h, origin)
+        rows = _k.bucket_rows(order, c, f, h)
         self.faces = f
-        self.buckets = Buckets(start, z, rows[0], rows[1], rows[2], rows[3], rows[4], order,
-                               dims, back)
+        self.buckets = Buckets(start, z, *rows, order, dims, back)
         self._box = np.empty((len(f), 6), np.float32)
         self._pairs: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._hit = np.zeros(0, np.uint8)
@@ -115,7 +113,8 @@ class FaceBoxes:
         of the other faces are kept from it). Same decisions as
         :func:`~anatomesh.core.geometry.intersections.self_intersections` (faces with a corner
         at the same position do not count; touching counts)."""
-        X = np.ascontiguousarray(vertices, np.float64)
+        v = np.asarray(vertices)  # memory: float32 positions are tested as they are, no copy
+        X = np.ascontiguousarray(v, np.float32 if v.dtype == np.float32 else np.float64)
         f, B = self.faces, self.buckets
         if X.ndim != 2 or X.shape[1] != 3 or (f.size and int(f.max()) >= X.shape[0]):
             raise AnatomeshError(f"vertices {X.shape} do not match the faces the boxes were built for")

@@ -12,27 +12,28 @@ from ._filter_kernels import FAST
 
 
 @njit(cache=True)
-def _fold_check(pos, faces, ref, eps, f):
+def _fold_check(pos, start, faces, eps, f):
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
     nx, ny, nz = triangle_cross(pos, a, b, c)
-    rx, ry, rz = ref[f, 0], ref[f, 1], ref[f, 2]
+    rx, ry, rz = triangle_cross(start, a, b, c)  # memory: computed, not an (M, 3) array
     r2 = rx * rx + ry * ry + rz * rz
     return r2 > 0.0 and nx * rx + ny * ry + nz * rz <= eps * r2
 
 
 @njit(parallel=True, cache=True)
-def folded(pos, faces, ref_normals, eps):
-    """Faces whose normal (unnormalised) has turned by 90° or more from ``ref_normals``, or
-    collapsed: ``n · n_ref <= eps |n_ref|²``. Faces with a zero reference normal never count."""
+def folded(pos, start, faces, eps):
+    """Faces whose normal (unnormalised) has turned by 90° or more from their normal at
+    ``start``, or collapsed: ``n · n_start <= eps |n_start|²``. Faces with a zero normal at
+    ``start`` never count."""
     m = faces.shape[0]
     out = np.zeros(m, np.bool_)
     for f in prange(m):
-        out[f] = _fold_check(pos, faces, ref_normals, eps, f)
+        out[f] = _fold_check(pos, start, faces, eps, f)
     return out
 
 
 @njit(cache=True)
-def unfold_rounds(pos, start, faces, ref, eps, vf_offsets, vf, bad, rounds, touched):
+def unfold_rounds(pos, start, faces, eps, vf_offsets, vf, bad, rounds, touched):
     """The fold guard's rounds, in place: move every vertex of a folded face (``bad``: the
     faces folded now) halfway back to ``start``, ``rounds`` times, then straight back until none
     is folded (at most 100 times); after each move only the faces around moved vertices are
@@ -68,23 +69,19 @@ def unfold_rounds(pos, start, faces, ref, eps, vf_offsets, vf, bad, rounds, touc
                     cand.append(f)
         for f in cand:
             seen[f] = False
-        keep = [f for f in cand if _fold_check(pos, faces, ref, eps, f)]
+        keep = [f for f in cand if _fold_check(pos, start, faces, eps, f)]
         nxt = np.array(keep, np.int64) if len(keep) else nxt
         bad = nxt
     return bad.shape[0]
 
 
 @njit(parallel=True, cache=True)
-def face_terms(pos, faces, origin, normals, areas, tet):
-    """Unit normal, area (mm²) and the signed volume of the tetrahedron (origin, face) (mm³)
-    of every face (a zero-area face gets normal 0)."""
+def face_terms(pos, faces, origin, areas, tet):
+    """Area (mm²) and the signed volume of the tetrahedron (origin, face) (mm³) of every face."""
     for f in prange(faces.shape[0]):
         a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
         nx, ny, nz = triangle_cross(pos, a, b, c)
-        ln = math.sqrt(nx * nx + ny * ny + nz * nz)
-        areas[f] = 0.5 * ln
-        k = 1.0 / ln if ln > 0.0 else 0.0
-        normals[f, 0], normals[f, 1], normals[f, 2] = nx * k, ny * k, nz * k
+        areas[f] = 0.5 * math.sqrt(nx * nx + ny * ny + nz * nz)
         cx = (pos[a, 0] + pos[b, 0] + pos[c, 0]) / 3.0 - origin[0]
         cy = (pos[a, 1] + pos[b, 1] + pos[c, 1]) / 3.0 - origin[1]
         cz = (pos[a, 2] + pos[b, 2] + pos[c, 2]) / 3.0 - origin[2]
@@ -112,20 +109,13 @@ def region_terms(inside, outside, areas, tet, volume, diag, between, touching):
             between[a, b] += areas[f]
 
 
-@njit(parallel=True, cache=True)
-def face_moves(normals, areas, lam, inside, outside, moves):
-    """``moves[f] = (A t n, A)`` with the face offset ``t = lam[inside] − lam[outside]`` along
-    the unit normal n and the area A (``lam`` (R + 1,), its last entry 0: background, −1)."""
-    for f in prange(normals.shape[0]):
-        w = areas[f] * (lam[inside[f]] - lam[outside[f]])
-        moves[f, 0], moves[f, 1], moves[f, 2] = w * normals[f, 0], w * normals[f, 1], w * normals[f, 2]
-        moves[f, 3] = areas[f]
-
-
 @njit(parallel=True, fastmath=FAST, cache=True)
-def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
-    """Each vertex by the area-weighted mean of its faces' moves (:func:`face_moves`):
-    ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain."""
+def vertex_moves(src, dst, faces, vf_offsets, vf, areas, lam, inside, outside, gain):
+    """Each vertex by the area-weighted mean of its faces' moves, a face moving by
+    ``t = lam[inside] − lam[outside]`` along its unit normal n (``lam`` (R + 1,), its last entry
+    0: background, −1): ``p' = p + Σ A_f t_f n_f / Σ A_f``, times the gain. ``A_f n_f`` is half
+    the face's cross product at ``src`` and ``areas`` its areas there (memory: no per-face
+    normals or moves are stored)."""
     has_gain = gain.shape[0] > 0
     for i in prange(src.shape[0]):
         sx = 0.0
@@ -134,10 +124,12 @@ def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
         sa = 0.0
         for a in range(vf_offsets[i], vf_offsets[i + 1]):
             f = vf[a]
-            sx += moves[f, 0]
-            sy += moves[f, 1]
-            sz += moves[f, 2]
-            sa += moves[f, 3]
+            t = 0.5 * (lam[inside[f]] - lam[outside[f]])
+            nx, ny, nz = triangle_cross(src, faces[f, 0], faces[f, 1], faces[f, 2])
+            sx += t * nx
+            sy += t * ny
+            sz += t * nz
+            sa += areas[f]
         px, py, pz = src[i, 0], src[i, 1], src[i, 2]
         if sa > 0.0:
             k = 1.0 / sa
@@ -147,13 +139,6 @@ def vertex_moves(src, dst, vf_offsets, vf, moves, gain):
         dst[i, 0] = px
         dst[i, 1] = py
         dst[i, 2] = pz
-
-
-@njit(parallel=True, cache=True)
-def face_cross(pos, faces, out):
-    """Unnormalised normal ``(b − a) × (c − a)`` of every face into ``out`` (M, 3)."""
-    for f in prange(faces.shape[0]):
-        out[f, 0], out[f, 1], out[f, 2] = triangle_cross(pos, faces[f, 0], faces[f, 1], faces[f, 2])
 
 
 @njit(cache=True)

@@ -7,6 +7,8 @@ import math
 import numpy as np
 from numba import get_thread_id, njit, prange
 
+from ..geometry.kernels import triangle_cross
+
 
 @njit(cache=True, inline="always")
 def _angle(ax, ay, az, bx, by, bz):
@@ -17,10 +19,10 @@ def _angle(ax, ay, az, bx, by, bz):
 
 
 @njit(parallel=True, cache=True)
-def face_measures(pos, faces, origin, ref, table, angles):
-    """Per face f at ``pos`` (N, 3) float64, into column f of ``table`` (7, M) float64: area
-    (mm²), signed volume of the tetrahedron (origin, face) (mm³), turned over against the
-    unnormalised normals ``ref`` (n · ref < 0: 1, else 0), degenerate (a repeated corner or zero
+def face_measures(pos, faces, origin, rest, table, angles):
+    """Per face f at ``pos`` (N, 3) float64, into column f of ``table`` (7, ≥ M) float64: area
+    (mm²), signed volume of the tetrahedron (origin, face) (mm³), turned over against its
+    normal at ``rest`` (N, 3) (n · n_rest < 0: 1, else 0), degenerate (a repeated corner or zero
     area: 1), the smallest interior angle (degrees; 0 unless ``angles``), that angle below 10°
     (1), and 1 (the face count)."""
     for f in prange(faces.shape[0]):
@@ -34,7 +36,8 @@ def face_measures(pos, faces, origin, ref, table, angles):
         table[0, f] = area
         table[1, f] = (nx * (pos[a, 0] - origin[0]) + ny * (pos[a, 1] - origin[1])
                        + nz * (pos[a, 2] - origin[2])) / 6.0
-        table[2, f] = 1.0 if nx * ref[f, 0] + ny * ref[f, 1] + nz * ref[f, 2] < 0.0 else 0.0
+        rx, ry, rz = triangle_cross(rest, a, b, c)  # memory: computed, not an (M, 3) array
+        table[2, f] = 1.0 if nx * rx + ny * ry + nz * rz < 0.0 else 0.0
         table[3, f] = 1.0 if a == b or b == c or a == c or area <= 0.0 else 0.0
         table[6, f] = 1.0
         t = 0.0
@@ -59,18 +62,10 @@ def _smallest_angle(e1x, e1y, e1z, e2x, e2y, e2z, e3x, e3y, e3z):
     return _angle(-e2x, -e2y, -e2z, -e3x, -e3y, -e3z)  # edge ab: the angle at c
 
 
-@njit(parallel=True, cache=True)
-def corner_max(values, faces, out):
-    """``out[f]``: the largest of ``values`` over the corners of face f."""
-    for f in prange(faces.shape[0]):
-        out[f] = max(values[faces[f, 0]], max(values[faces[f, 1]], values[faces[f, 2]]))
-
-
 @njit(cache=True)
 def label_sums(sides, table, signed, out):
-    """``out[k, j]`` += ``table[j, f]`` for each side of face f with label index
-    ``k = sides[f, side] >= 0``, negated on the outside when ``signed[j]``; zeroed first."""
-    out[:, :] = 0.0
+    """``out[k, j]`` += ``table[j, f]`` for each side of face f (in order) with label index
+    ``k = sides[f, side] >= 0``, negated on the outside when ``signed[j]``."""
     for f in range(sides.shape[0]):
         for side in range(2):
             k = sides[f, side]
@@ -82,14 +77,38 @@ def label_sums(sides, table, signed, out):
 
 
 @njit(cache=True)
-def label_max(sides, per_face, out):
-    """``out[k]``: the largest ``per_face[f]`` over faces f with label index k on a side."""
+def label_max(sides, faces, values, out):
+    """``out[k]``: the largest of ``values`` (N,) over the corners of the faces with label
+    index k on a side."""
     out[:] = 0.0
+    for f in range(sides.shape[0]):
+        x = max(values[faces[f, 0]], max(values[faces[f, 1]], values[faces[f, 2]]))
+        for side in range(2):
+            k = sides[f, side]
+            if k >= 0 and x > out[k]:
+                out[k] = x
+
+
+@njit(cache=True)
+def faces_by_label(sides, labels):
+    """The faces with each label index on a side, in face order (a counting sort):
+    ``(faces (K,) int32, starts (labels + 1,) int64)``, label k's from ``starts[k]``."""
+    starts = np.zeros(labels + 1, np.int64)
+    for f in range(sides.shape[0]):
+        for side in range(2):
+            if sides[f, side] >= 0:
+                starts[sides[f, side] + 1] += 1
+    for k in range(labels):
+        starts[k + 1] += starts[k]
+    fill = starts[:-1].copy()
+    faces = np.empty(starts[labels], np.int32)
     for f in range(sides.shape[0]):
         for side in range(2):
             k = sides[f, side]
-            if k >= 0 and per_face[f] > out[k]:
-                out[k] = per_face[f]
+            if k >= 0:
+                faces[fill[k]] = f
+                fill[k] += 1
+    return faces, starts
 
 
 @njit(parallel=True, cache=True)

@@ -25,18 +25,7 @@ from ..geometry.neighbors import MeshStructure, check_faces
 from ..model.errors import AnatomeshError
 
 
-def fold_reference(start: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Unnormalised normals (M, 3) float64 of the unsmoothed faces: what the fold guard compares
-    against (cache it to guard the same surface again)."""
-    s0 = np.ascontiguousarray(start, np.float64)
-    f = np.ascontiguousarray(faces)
-    out = np.empty((f.shape[0], 3))
-    _gk.face_cross(s0, f, out)
-    return out
-
-
 def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
-           reference: Optional[np.ndarray] = None,
            structure: Optional[MeshStructure] = None) -> Tuple[np.ndarray, int]:
     """Undo folds: faces whose normal turned by 90° or more from ``start`` (or collapsed).
 
@@ -50,7 +39,7 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
     vertices, start : (N, 3) float, mm — smoothed and unsmoothed positions
     faces : (M, 3) int
     eps : a face counts as collapsed when ``n · n_start <= eps |n_start|²`` (n unnormalised)
-    reference, structure : the :func:`fold_reference` and neighbourhoods, if already built
+    structure : the faces' neighbourhoods, if already built
 
     Returns ``(positions (N, 3) in the dtype of vertices, vertices moved back)``.
     """
@@ -63,23 +52,22 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
     if f.shape[0] == 0:
         return v.astype(dtype), 0
     s = mesh_structure(f, v.shape[0], structure)
-    ref = fold_reference(s0, f) if reference is None else reference
-    moved = unfold_in_place(v, s0, s, ref, rounds, eps)
+    moved = unfold_in_place(v, s0, s, rounds, eps)
     return v.astype(dtype, copy=False), moved
 
 
-def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure, reference: np.ndarray,
+def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure,
                     rounds: int = 10, eps: float = 1e-3,
                     touched: Optional[np.ndarray] = None) -> int:
     """:func:`unfold` on float64 (N, 3) ``pos``, in place (no checks); returns the vertices
     moved, and marks them in ``touched`` (N,) bool if given (all False on entry). After the
     first full scan only faces around moved vertices are checked again."""
-    bad = np.flatnonzero(_gk.folded(pos, s.faces, reference, float(eps)))
+    bad = np.flatnonzero(_gk.folded(pos, start, s.faces, float(eps)))
     if bad.size == 0:
         return 0
     if touched is None:
         touched = np.zeros(pos.shape[0], np.bool_)
-    _gk.unfold_rounds(pos, start, s.faces, reference, float(eps), s.vf_offsets, s.vf, bad,
+    _gk.unfold_rounds(pos, start, s.faces, float(eps), s.vf_offsets, s.vf, bad,
                       int(rounds), touched)
     return int(touched.sum())
 
@@ -109,26 +97,24 @@ class VolumeRegions:
 
     def __init__(self, faces: np.ndarray, face_sides, targets):
         tg = np.asarray(targets, np.float64).ravel()
-        sides = np.asarray(face_sides, np.int64).reshape(-1, 2).copy()
+        sides = np.asarray(face_sides).reshape(-1, 2)
         if sides.shape[0] != faces.shape[0]:
             raise AnatomeshError(f"face_sides has {sides.shape[0]} rows for {faces.shape[0]} faces")
         if sides.max(initial=-1) >= tg.size:
             raise AnatomeshError(f"face_sides name region {sides.max()} but only {tg.size} targets")
         self.free = ~np.isfinite(tg)
-        sides[(sides >= 0) & self.free[np.maximum(sides, 0)]] = -1
         self.faces, self.targets, self.r = faces, tg, tg.size
-        self.inside = np.ascontiguousarray(sides[:, 0])
-        self.outside = np.ascontiguousarray(sides[:, 1])
+        self.inside, self.outside = (_region_ids(sides[:, j], self.free) for j in (0, 1))
         self.touching = bool(np.any((self.inside >= 0) & (self.outside >= 0)))
         m = faces.shape[0]
-        self.normals, self.areas, self.tet = np.empty((m, 3)), np.empty(m), np.empty(m)
+        self.areas, self.tet = np.empty(m), np.empty(m)
         self.between = np.zeros((self.r, self.r) if self.touching else (1, 1))
 
     def volumes(self, pos: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """``(volume (R,) mm³, shell area (R,) mm²)`` of every region at float64 ``pos``; fills
         the face normals and areas, and the areas shared by two regions (``between``)."""
         origin = pos[0] if len(pos) else np.zeros(3)
-        _gk.face_terms(pos, self.faces, origin, self.normals, self.areas, self.tet)
+        _gk.face_terms(pos, self.faces, origin, self.areas, self.tet)
         volume, diag = np.zeros(self.r), np.zeros(self.r)
         _gk.region_terms(self.inside, self.outside, self.areas, self.tet, volume, diag,
                          self.between, self.touching)
@@ -154,15 +140,21 @@ class VolumeRegions:
         arrays (:meth:`Constraint.arrays`), ``gain`` (N,) or empty. Returns the new positions
         (``pos`` or a buffer)."""
         buf = np.empty_like(pos)
-        moves = np.empty((self.faces.shape[0], 4))
         for _ in range(int(iterations)):
-            lam = self.offsets(pos)
-            _gk.face_moves(self.normals, self.areas, lam, self.inside, self.outside, moves)
-            _gk.vertex_moves(pos, buf, s.vf_offsets, s.vf, moves, gain)
+            lam = self.offsets(pos)  # also the face areas at pos
+            _gk.vertex_moves(pos, buf, self.faces, s.vf_offsets, s.vf, self.areas, lam,
+                             self.inside, self.outside, gain)
             if cons[0] != 0 or cons[4] < np.inf:
                 _fk.constrain_all(buf, *cons)
             pos, buf = buf, pos
         return pos
+
+
+def _region_ids(side: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """(M,) int32 region ids of one side of the faces, −1 for background and free regions."""
+    ids = side.astype(np.int32)
+    ids[(ids < 0) | free[np.maximum(ids, 0)]] = -1
+    return ids
 
 
 def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -219,5 +211,5 @@ def component_regions(s: MeshStructure):
     _, _, kind = s.feature_ring(None)  # kind != 0: the vertex has an edge without two faces
     closed = np.ones(n, bool)
     closed[np.unique(vlab[kind != 0])] = False
-    comp = np.where(closed[flab], flab, -1)
+    comp = np.where(closed[flab], flab, -1).astype(np.int32)
     return np.stack([comp, np.full_like(comp, -1)], axis=1), n

@@ -7,7 +7,7 @@ vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets"
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
 ``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings,
 padded columns, vertex → faces), the cell boxes, the regions and target volumes of the volume
-step, the fold guard's reference normals, the faces bucketed by their boxes (which pairs can
+step, the faces bucketed by their boxes (which pairs can
 cross, :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the
 second run on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
 whole default driver — filter, fold guard, volume step, fold guard, untangling — for any
@@ -35,7 +35,7 @@ from .checks import mesh_structure, precision_dtype
 from .constraints import (Constraint, clamp, distance_gain, lattice_constraint, staircase_params,
                           voxel_constraint)
 from .filters import FILTERS
-from .guards import VolumeRegions, component_regions, fold_reference, unfold_in_place
+from .guards import VolumeRegions, component_regions, unfold_in_place
 from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
 from .shell_measures import ShellMeasures, shell_key, shell_warnings
@@ -122,11 +122,11 @@ class SmoothingSession:
 
     def _make_regions(self) -> VolumeRegions:
         if self.has_lattice:
-            fl = np.asarray(self.surfaces.face_labels, np.int64)
+            fl = np.asarray(self.surfaces.face_labels)
             present = np.zeros(max(int(fl.max(initial=0)), self.surfaces.background) + 1, bool)
             present[fl.ravel()] = True
             present[self.surfaces.background] = False
-            index = np.cumsum(present) - 1
+            index = (np.cumsum(present) - 1).astype(np.int32)  # memory: (M, 2) int32 sides
             index[~present] = -1
             sides, n = index[fl], int(present.sum())
         else:
@@ -134,10 +134,6 @@ class SmoothingSession:
         regions = VolumeRegions(self.structure.faces, sides, np.zeros(n))
         regions.targets = regions.volumes(self.rest)[0]
         return regions
-
-    def reference(self) -> np.ndarray:
-        """Unnormalised normals of the unsmoothed faces (fold guard, report)."""
-        return self._cached("reference", lambda: fold_reference(self.rest, self.faces))
 
     def constraint(self, constraint, max_deviation: Optional[float]) -> Optional[Constraint]:
         """The constraint for a setting: ``"cell"`` → the lattice cell box (label map) or the
@@ -188,7 +184,7 @@ class SmoothingSession:
     def measures(self) -> ShellMeasures:
         """The per-shell measures against the unsmoothed set; cached."""
         return self._cached("measures", lambda: ShellMeasures(self.surfaces, self.rest,
-                                                              self.structure, self.reference()))
+                                                              self.structure))
 
     def run(self, method: str = DEFAULT, *, constraint="auto", max_deviation: Optional[float] = None,
             junctions: bool = True, staircase="auto", damping_distance: Optional[float] = None,
@@ -267,14 +263,14 @@ class SmoothingSession:
         extra, warnings = {}, []
         unfolded = 0
         if fold_guard:
-            unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
+            unfolded += unfold_in_place(pos, self.rest, self.structure)
         if preserve:
             pos = self.regions().restore(pos, self.structure, cons,
                                          np.zeros(0) if gain is None else gain)
             if not keep:
                 self._cache.pop("regions", None)
             if fold_guard:
-                unfolded += unfold_in_place(pos, self.rest, self.structure, self.reference())
+                unfolded += unfold_in_place(pos, self.rest, self.structure)
             extra["preserve_volume"] = True
         if fold_guard:
             extra["unfolded_vertices"] = unfolded
@@ -302,7 +298,7 @@ class SmoothingSession:
         s, unfolded, left = self.structure, 0, None
         for _ in range(rounds):
             pos, touched = out.astype(np.float64), np.zeros(len(out), np.bool_)
-            moved = unfold_in_place(pos, self.rest, s, self.reference(), touched=touched)
+            moved = unfold_in_place(pos, self.rest, s, touched=touched)
             if moved == 0:
                 break
             unfolded += moved

@@ -27,9 +27,11 @@ from ..model.mesh import Mesh
 from ..model.surfaceset import SurfaceSet
 
 _TOPO_KEYS = ("components", "genus", "closed", "manifold", "oriented", "degenerate_faces")
-#: rows of the per-face table summed per label: area, signed volume, flipped, degenerate,
+#: the per-face measures summed per label: area, signed volume, flipped, degenerate,
 #: smallest angle, angle below 10°, 1 (the face count); True: negated on the outside label
 _SIGNED = np.array([False, True, False, False, False, False, False])
+#: faces measured at a time (memory: a (7, block) table, not (7, M))
+_BLOCK = 1 << 18
 
 
 def shell_key(value) -> int:
@@ -46,32 +48,35 @@ class ShellMeasures:
     surfaces : SurfaceSet — the unsmoothed set
     rest : (N, 3) float64 — its positions, mm
     structure : MeshStructure of its faces
-    reference : (M, 3) float64 — unnormalised normals of the unsmoothed faces
     """
 
-    def __init__(self, surfaces: SurfaceSet, rest: np.ndarray, structure: MeshStructure,
-                 reference: np.ndarray):
-        self.surfaces, self.rest, self.s, self.reference = surfaces, rest, structure, reference
+    def __init__(self, surfaces: SurfaceSet, rest: np.ndarray, structure: MeshStructure):
+        self.surfaces, self.rest, self.s = surfaces, rest, structure
         self.values = surfaces.values()
         index = np.full(max(self.values + [surfaces.background, 0]) + 1, -1, np.int32)
         index[np.asarray(self.values, np.int64)] = np.arange(len(self.values))
         self.sides = np.ascontiguousarray(index[surfaces.face_labels])
         self.origin = rest[0] if len(rest) else np.zeros(3)
-        self.before = self._sums(rest)
+        self.before = self._sums(rest)[0]
         self._topology: Optional[List[dict]] = None
         self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._near: Optional[np.ndarray] = None
 
-    def _faces(self, pos: np.ndarray, angles: bool = True) -> np.ndarray:
-        """The per-face table (7, M) float64 at ``pos`` (rows: see ``_SIGNED``)."""
-        table = np.empty((7, self.s.n_faces))
-        _k.face_measures(pos, self.s.faces, self.origin, self.reference, table, angles)
-        return table
-
-    def _sums(self, pos: np.ndarray) -> np.ndarray:
-        out = np.empty((len(self.values), 7))
-        _k.label_sums(self.sides, self._faces(pos, angles=False), _SIGNED, out)
-        return out
+    def _sums(self, pos: np.ndarray, angles: bool = False) -> Tuple[np.ndarray, np.ndarray]:
+        """The per-label sums (L, 7) float64 of the face measures at ``pos`` (rows: see
+        ``_SIGNED``), in face order, and, when ``angles``, each face's smallest angle (M,)
+        float64 (degrees). Memory: the per-face table is filled and summed a block of faces at
+        a time."""
+        m = self.s.n_faces
+        out, angle = np.zeros((len(self.values), 7)), np.empty(m if angles else 0)
+        table = np.empty((7, min(m, _BLOCK)))
+        for lo in range(0, m, _BLOCK):
+            hi = min(lo + _BLOCK, m)
+            _k.face_measures(pos, self.s.faces[lo:hi], self.origin, self.rest, table, angles)
+            _k.label_sums(self.sides[lo:hi], table, _SIGNED, out)
+            if angles:
+                angle[lo:hi] = table[4, :hi - lo]
+        return out, angle
 
     def topology_before(self) -> List[dict]:
         """Per shell: components, genus, closed, manifold, oriented, degenerate faces of the
@@ -86,16 +91,10 @@ class ShellMeasures:
         (without curvature) at float64 positions ``after``. ``topology=False``: the topology
         entries hold only ``degenerate_faces`` (smoothing moves vertices, never the faces:
         the rest cannot change), saving the per-shell topology pass."""
-        table = self._faces(after)
-        now = np.empty((len(self.values), 7))
-        _k.label_sums(self.sides, table, _SIGNED, now)
-        angle = table[4].copy()
-        del table  # memory: summed
+        now, angle = self._sums(after, angles=True)
         angles = self._angle_stats(angle)
-        disp = np.linalg.norm(after - self.rest, axis=1)
-        face_disp, worst_disp = np.empty(self.s.n_faces), np.empty(len(self.values))
-        _k.corner_max(disp, self.s.faces, face_disp)
-        _k.label_max(self.sides, face_disp, worst_disp)
+        worst_disp = np.empty(len(self.values))
+        _k.label_max(self.sides, self.s.faces, np.linalg.norm(after - self.rest, axis=1), worst_disp)
         dist = self._distances(after) if distances else None
         out = {}
         topologies = self.topology_before() if topology else \
@@ -131,15 +130,11 @@ class ShellMeasures:
     def _angle_stats(self, angle: np.ndarray) -> np.ndarray:
         """(2, shells): the smallest face angle and its 1st percentile in each shell."""
         if self._by_label is None:  # the faces of each label, in face order
-            lab = self.sides.ravel()
-            order = np.argsort(lab, kind="stable")  # background (−1) first
-            starts = np.searchsorted(lab, np.arange(len(self.values) + 1), sorter=order)
-            self._by_label = ((order[starts[0]:] // 2).astype(np.int32), starts - starts[0])
+            self._by_label = _k.faces_by_label(self.sides, len(self.values))
         faces, starts = self._by_label
-        per = angle[faces]
         out = np.zeros((2, len(self.values)))
         for k in range(len(self.values)):
-            part = per[starts[k]:starts[k + 1]]
+            part = angle[faces[starts[k]:starts[k + 1]]]
             if part.size:
                 out[0, k], out[1, k] = part.min(), np.percentile(part, 1)
         return out

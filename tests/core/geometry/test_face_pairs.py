@@ -92,7 +92,8 @@ def test_candidate_pairs_are_exactly_the_overlapping_extents():
 def test_candidate_pairs_find_every_crossing_of_vertices_jittered_in_their_cells(seed):
     """Sheets one voxel apart (staircases along a diagonal gap) and the 41-label
     TotalSegmentator map, every vertex moved at random inside its cell: the crossings among the
-    candidate pairs are exactly the crossings of a search over all faces."""
+    candidate pairs are exactly the crossings of a search over all faces, for the float32
+    positions (tested as they are) and for their float64 copy."""
     from anatomesh.core import load
     from conftest import shared
 
@@ -104,7 +105,9 @@ def test_candidate_pairs_find_every_crossing_of_vertices_jittered_in_their_cells
         v = jitter(ss, rng, 0.998) * np.float32(1.5) + np.float32(7.0)  # 1.5 mm voxels
         want = self_intersections(v, ss.faces)
         want = want[np.lexsort((want[:, 1], want[:, 0]))]
+        assert v.dtype == np.float32
         np.testing.assert_array_equal(crossing_pairs_among(v, pairs), want)
+        np.testing.assert_array_equal(crossing_pairs_among(v.astype(np.float64), pairs), want)
         np.testing.assert_array_equal(FaceBoxes(ss.faces, ss.lattice - 0.5, 0.5).crossings(v), want)
         got = want
         found += len(got)
