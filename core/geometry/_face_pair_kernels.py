@@ -226,23 +226,24 @@ def _up32(x):
 
 
 @njit(parallel=True, cache=True)
-def bucket_rows(order, centres, faces, half):
+def bucket_rows(order, centres, faces, half, extents):
     """The faces in bucket ``order``, in parallel: extents ``(lo, hi)`` (M, 3) float32 rounded
     outwards (an extent only grows: a candidate is never lost; their floor and ceiling are those
-    of the exact values), reaches (see :func:`_extent`) and corners (M, 3) int32 (a row's
-    home cell is its column and z)."""
+    of the exact values; (0, 3) unless ``extents``) and reaches (M, 3) int16 (see
+    :func:`_extent`; at most ``back``, checked by the caller). A row's home cell is its column
+    and z; its corners are those of face ``order[row]``."""
     m = order.shape[0]
-    lo2, hi2 = np.empty((m, 3), np.float32), np.empty((m, 3), np.float32)
-    reach2 = np.empty((m, 3), np.int32)
-    faces2 = np.empty((m, 3), faces.dtype)
+    rows = m if extents else 0
+    lo2, hi2 = np.empty((rows, 3), np.float32), np.empty((rows, 3), np.float32)
+    reach2 = np.empty((m, 3), np.int16)
     for k in prange(m):
         f = order[k]
         for c in range(3):
             lo, hi, _, reach = _extent(centres, faces, half, f, c)
-            lo2[k, c], hi2[k, c] = _down32(lo), _up32(hi)
+            if extents:
+                lo2[k, c], hi2[k, c] = _down32(lo), _up32(hi)
             reach2[k, c] = reach
-            faces2[k, c] = faces[f, c]
-    return lo2, hi2, reach2, faces2
+    return lo2, hi2, reach2
 
 
 @njit(cache=True)
@@ -339,10 +340,10 @@ def _column_sweep(c, B, X, box, rel_eps, offsets, out):
                 ok = False
                 if test:
                     if not _boxes_apart(box, k, k2):
-                        if not _shares_vertex(faces, k, k2):
+                        if not _shares_vertex(faces, fid[k], fid[k2]):
                             ok = _cross_rest(X, faces, fid, k, k2, rel_eps)
                 elif _overlap(lo, hi, k, k2):
-                    ok = not _shares_vertex(faces, k, k2)
+                    ok = not _shares_vertex(faces, fid[k], fid[k2])
                 if ok:
                     if fill:
                         out[offsets[k] + n] = k2
@@ -356,7 +357,7 @@ def _column_sweep(c, B, X, box, rel_eps, offsets, out):
 def sweep_csr(B, X, box, rel_eps):
     """CSR over bucket rows ``(offsets (M + 1,), partner rows int32)`` of :func:`_column_sweep`
     over all columns: candidate pairs (``X`` empty) or crossing pairs (each pair once)."""
-    m = B.faces.shape[0]
+    m = B.fid.shape[0]
     ncol = B.start.shape[0] - 1
     offsets = np.zeros(m + 1, np.int64)  # memory: the counts, then (summed in place) offsets
     none = np.zeros(0, np.int32)
@@ -411,7 +412,7 @@ def _around(k, B, X, box, rel_eps, active, out, pos):
                     break
                 if k2 == k or (active[k2] and k2 < k):
                     continue
-                if _boxes_apart(box, k, k2) or _shares_vertex(faces, k, k2):
+                if _boxes_apart(box, k, k2) or _shares_vertex(faces, fid[k], fid[k2]):
                     continue
                 if _cross_rest(X, faces, fid, k, k2, rel_eps):
                     if out.shape[0] > 0:
@@ -458,25 +459,27 @@ def _welded(X, faces, a, b):
 
 
 @njit(parallel=True, cache=True)
-def face_boxes(X, faces, box):
-    """Bounding box of every face into ``box`` (M, 6) float32: min xyz, max xyz, rounded
-    outwards (a box only grows: a pair is never wrongly taken apart)."""
-    for f in prange(faces.shape[0]):
+def face_boxes(X, faces, fid, box):
+    """Bounding box of the face of every bucket row (``fid``) into ``box`` (M, 6) float32: min
+    xyz, max xyz, rounded outwards (a box only grows: a pair is never wrongly taken apart)."""
+    for k in prange(fid.shape[0]):
+        f = fid[k]
         for c in range(3):
             x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[f, c] = _down32(min(x0, min(x1, x2)))
-            box[f, 3 + c] = _up32(max(x0, max(x1, x2)))
+            box[k, c] = _down32(min(x0, min(x1, x2)))
+            box[k, 3 + c] = _up32(max(x0, max(x1, x2)))
 
 
 @njit(parallel=True, cache=True)
-def face_boxes_of(X, faces, rows, box):
-    """:func:`face_boxes` for the faces ``rows`` only."""
+def face_boxes_of(X, faces, fid, rows, box):
+    """:func:`face_boxes` for the bucket rows ``rows`` only."""
     for i in prange(rows.shape[0]):
-        f = rows[i]
+        k = rows[i]
+        f = fid[k]
         for c in range(3):
             x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[f, c] = _down32(min(x0, min(x1, x2)))
-            box[f, 3 + c] = _up32(max(x0, max(x1, x2)))
+            box[k, c] = _down32(min(x0, min(x1, x2)))
+            box[k, 3 + c] = _up32(max(x0, max(x1, x2)))
 
 
 @njit(cache=True, inline="always")
@@ -494,10 +497,10 @@ def _cross_rest(X, faces, fid, k, k2, rel_eps):
     no corner at the same position, Möller's test with the smaller face id first (as the grid
     search orders them). Called only after the cheap checks, written inline in the loops (numba
     compiles those tighter than a helper)."""
-    if _welded(X, faces, k, k2):
+    p, q = np.int64(fid[k]), np.int64(fid[k2])
+    if _welded(X, faces, p, q):
         return False
-    p, q = np.int64(k), np.int64(k2)
-    if fid[q] < fid[p]:
+    if q < p:
         p, q = q, p
     return tri_tri(X, faces[p, 0], faces[p, 1], faces[p, 2], faces[q, 0], faces[q, 1],
                    faces[q, 2], rel_eps)
@@ -507,7 +510,7 @@ def _cross_rest(X, faces, fid, k, k2, rel_eps):
 def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
     """``hit[t] = 1`` when candidate pair t (bucket row, ``partners[t]``) crosses."""
     faces, fid = B.faces, B.fid
-    for k in prange(faces.shape[0]):
+    for k in prange(fid.shape[0]):
         for t in range(offsets[k], offsets[k + 1]):
             k2 = partners[t]
             hit[t] = 0

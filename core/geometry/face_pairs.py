@@ -35,10 +35,10 @@ class Buckets(NamedTuple):
     kernels, rows in bucket order."""
     start: np.ndarray   #: (Dx * Dy + 1,) int64: rows of each column
     z: np.ndarray       #: (M,) int32: home z of each row
-    lo: np.ndarray      #: (M, 3) float32: extent, low corner (rounded down)
-    hi: np.ndarray      #: (M, 3) float32: extent, high corner (rounded up)
-    reach: np.ndarray   #: (M, 3) int32: how far up a partner's home can be
-    faces: np.ndarray   #: (M, 3) int32: corners
+    lo: np.ndarray      #: (M, 3) float32: extent, low corner (rounded down); (0, 3): not kept
+    hi: np.ndarray      #: (M, 3) float32: extent, high corner (rounded up); (0, 3): not kept
+    reach: np.ndarray   #: (M, 3) int16: how far up a partner's home can be
+    faces: np.ndarray   #: (M, 3) int32: the faces, in face order (a row's: ``faces[fid[row]]``)
     fid: np.ndarray     #: (M,) int32: face index of each row
     dims: np.ndarray    #: (3,) int64: home cells per axis
     back: np.ndarray    #: (3,) int64: how far down a partner's home can be
@@ -56,13 +56,17 @@ class FaceBoxes:
         ``lattice − 0.5`` for a label map's set, ``inv(affine) @ start`` otherwise).
     half : (3,) float
         Half extents of the boxes along the frame axes (0.5 = the voxel).
+    listing : bool
+        Keep the faces' extents, which :meth:`materialize` needs to list the pairs; False
+        (one-shot runs, memory: 24 bytes a face): only :meth:`crossings` by the sweep.
 
     :meth:`crossings` tests the faces that can cross — every pair whose extents overlap with
     positive volume, sharing no vertex — at given positions: by a sweep over the buckets, or
     over the pairs listed once by :meth:`materialize` (faster when testing many times).
     """
 
-    def __init__(self, faces: np.ndarray, centres: np.ndarray, half: Sequence[float]):
+    def __init__(self, faces: np.ndarray, centres: np.ndarray, half: Sequence[float],
+                 listing: bool = True):
         c = np.asarray(centres, np.float64)
         if c.ndim != 2 or c.shape[1] != 3 or not np.all(np.isfinite(c)):
             raise AnatomeshError(f"box centres must be finite (N, 3) positions, got shape {c.shape}")
@@ -76,11 +80,14 @@ class FaceBoxes:
             if len(f) > 1 else np.arange(3)
         c, h = np.ascontiguousarray(c[:, axes]), np.ascontiguousarray(h[axes])
         home, back, dims = _k.homes(c, f, h)
+        if back.max(initial=0) > np.iinfo(np.int16).max:
+            raise AnatomeshError(f"faces span up to {back.max()} boxes; at most "
+                                 f"{np.iinfo(np.int16).max} are supported: use larger boxes")
         start, order, z = _k.bucket_faces(home, dims)
         del home  # memory: the rows are built in bucket order straight from the centres
-        rows = _k.bucket_rows(order, c, f, h)
-        self.faces = f
-        self.buckets = Buckets(start, z, *rows, order, dims, back)
+        rows = _k.bucket_rows(order, c, f, h, bool(listing))
+        self.faces, self.listing = f, bool(listing)
+        self.buckets = Buckets(start, z, *rows, f, order, dims, back)
         self._box = np.empty((len(f), 6), np.float32)
         self._pairs: Optional[Tuple[np.ndarray, np.ndarray]] = None
         self._hit = np.zeros(0, np.uint8)
@@ -88,6 +95,9 @@ class FaceBoxes:
 
     def materialize(self) -> "FaceBoxes":
         """List the candidate pairs once (CSR over bucket rows); returns self."""
+        if not self.listing:
+            raise AnatomeshError("these face boxes were built without their extents "
+                                 "(listing=False): build them with listing=True to list pairs")
         if self._pairs is None:
             self._pairs = _k.sweep_csr(self.buckets, np.zeros((0, 3)), self._box, 0.0)
             self._hit = np.zeros(self._pairs[1].shape[0], np.uint8)
@@ -128,13 +138,13 @@ class FaceBoxes:
             act = act[B.fid]
             rows = np.flatnonzero(act)
             if self._boxed == X.shape:  # the other faces did not move: their boxes hold
-                _k.face_boxes_of(X, B.faces, rows, self._box)
+                _k.face_boxes_of(X, B.faces, B.fid, rows, self._box)
             else:
-                _k.face_boxes(X, B.faces, self._box)
+                _k.face_boxes(X, B.faces, B.fid, self._box)
                 self._boxed = X.shape
             pairs = _k.active_crossings(rows, B, X, self._box, rel_eps, act)
             return _sorted_pairs(B.fid[pairs[:, 0]], B.fid[pairs[:, 1]])
-        _k.face_boxes(X, B.faces, self._box)
+        _k.face_boxes(X, B.faces, B.fid, self._box)
         self._boxed = X.shape
         if self._pairs is None:
             offsets, partners = _k.sweep_csr(B, X, self._box, float(rel_eps))

@@ -39,7 +39,8 @@ def edge_neighbours(s: MeshStructure) -> np.ndarray:
 
 
 def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
-                    near: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
+                    near: Optional[np.ndarray] = None,
+                    dtype=np.float64) -> Tuple[np.ndarray, np.ndarray]:
     """Distances from one position of a mesh to another, sampled locally.
 
     Parameters
@@ -51,18 +52,19 @@ def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
 
     Returns
     -------
-    at_vertices : (3M,) float64
+    at_vertices : (3M,) ``dtype`` (float64, or float32 to halve the memory: measured in float64,
+        stored rounded to 1e-7 relative)
         Entry ``t`` of the vertex → faces CSR (``s.vf_offsets``, ``s.vf``): the distance from
         ``points[i]`` (i the row) to face ``s.vf[t]`` at ``vertices``; the sample of vertex i is
         the minimum over its row (or over the faces of one label in it).
-    at_centroids : (M,) float64
+    at_centroids : (M,) ``dtype``
         The distance from the centroid of face f at ``points`` to face f (and ``near[f]``) at
         ``vertices``.
     """
     n = s.n_vertices
     p, v = _positions(points, n, "points"), _positions(vertices, n, "vertices")
-    at_vertices = np.empty(s.vf.shape[0])
-    at_centroids = np.empty(s.n_faces)
+    at_vertices = np.empty(s.vf.shape[0], dtype)
+    at_centroids = np.empty(s.n_faces, dtype)
     _k.incident_distances(p, v, s.faces, s.vf_offsets, s.vf, at_vertices)
     nb = np.full((s.n_faces, 0), -1, np.int32) if near is None else \
         np.ascontiguousarray(near, np.int32)

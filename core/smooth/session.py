@@ -159,22 +159,25 @@ class SmoothingSession:
         self._cells.add(id(c))
         return c
 
-    def boxes(self) -> FaceBoxes:
+    def boxes(self, listing: bool = True) -> FaceBoxes:
         """The faces bucketed by their cell boxes (which pairs can cross while every vertex
-        stays in its box); cached, the pairs listed from the second run on (a slider)."""
-        boxes = self._cached("boxes", self._make_boxes)
-        if self._runs > 1:
+        stays in its box); cached, the pairs listed from the second run on (a slider).
+        ``listing=False`` (one-shot runs): without what listing the pairs needs (memory)."""
+        boxes = self._cache.get("boxes")
+        if boxes is None or (listing and not boxes.listing):
+            boxes = self._cache["boxes"] = self._make_boxes(listing)
+        if self._runs > 1 and boxes.listing:
             boxes.materialize()
         return boxes
 
-    def _make_boxes(self) -> FaceBoxes:
+    def _make_boxes(self, listing: bool) -> FaceBoxes:
         s = self.surfaces
         if self.has_lattice:
             centres = s.lattice - 0.5
         else:
             a = np.asarray(s.affine, np.float64)
             centres = np.einsum("ij,kj->ik", self.rest - a[:3, 3], np.linalg.inv(a[:3, :3]))  # no BLAS threads
-        return FaceBoxes(self.faces, centres, (0.5, 0.5, 0.5))
+        return FaceBoxes(self.faces, centres, (0.5, 0.5, 0.5), listing)
 
     def gain(self, damping_distance: float) -> np.ndarray:
         """Distance-aware damping of the connected parts (:func:`distance_gain`), cached."""
@@ -278,7 +281,7 @@ class SmoothingSession:
         del pos  # memory: untangling works on the float32 positions
         if untangle:
             report(progress, 0.97, "checking for crossing faces")
-            pairs = self.boxes() if id(c) in self._cells else None
+            pairs = self.boxes(listing=keep) if id(c) in self._cells else None
             out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
                                            structure=self.structure)
             extra["untangled_vertices"] = info["moved_vertices"]

@@ -109,6 +109,8 @@ def test_candidate_pairs_find_every_crossing_of_vertices_jittered_in_their_cells
         np.testing.assert_array_equal(crossing_pairs_among(v, pairs), want)
         np.testing.assert_array_equal(crossing_pairs_among(v.astype(np.float64), pairs), want)
         np.testing.assert_array_equal(FaceBoxes(ss.faces, ss.lattice - 0.5, 0.5).crossings(v), want)
+        lean = FaceBoxes(ss.faces, ss.lattice - 0.5, 0.5, listing=False)  # one-shot: no extents
+        np.testing.assert_array_equal(lean.crossings(v), want)
         got = want
         found += len(got)
         active = np.zeros(len(ss.faces), bool)
@@ -129,3 +131,7 @@ def test_bad_inputs():
         candidate_pairs(ss.faces, ss.lattice - 0.5, 0.0)
     with pytest.raises(AnatomeshError, match="one flag per face"):
         crossing_pairs_among(ss.vertices, pairs, np.ones(3, bool))
+    with pytest.raises(AnatomeshError, match="listing=True"):
+        FaceBoxes(ss.faces, ss.lattice - 0.5, 0.5, listing=False).materialize()
+    with pytest.raises(AnatomeshError, match="span up to"):
+        FaceBoxes(ss.faces, ss.lattice * 1e5, 0.5)

@@ -34,5 +34,8 @@ def test_a_scaled_sphere_is_at_its_radial_offset_everywhere():
     assert np.all(per_vertex <= 0.1 + 1e-9) and per_vertex.min() > 0.09
     centroids = out[f].mean(axis=1)
     np.testing.assert_allclose(at_centroids, TriangleGrid(v, f).distance(centroids), atol=1e-9)
+    lean = local_distances(out, v, s, edge_neighbours(s), np.float32)  # the same, rounded
+    np.testing.assert_array_equal(lean[0], at_vertices.astype(np.float32))
+    np.testing.assert_array_equal(lean[1], at_centroids.astype(np.float32))
     with pytest.raises(AnatomeshError, match="positions"):
         local_distances(out[:5], v, s)
