@@ -172,6 +172,7 @@ def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result, pre=
         done, rep = stages.decimate(smoothed, lrecipe, float(max(layer.spacing)), clock.sub(at(1.0)))
         sets.append(done)
         decimation.append(rep)
+    clock.start("shells", 0.7, "splitting into shells")
     res.smoothing, res.decimation = stages.merge_reports(smoothing, decimation)
     res.surface_set = stack_surface_sets(sets)
     res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)

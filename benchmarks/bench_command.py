@@ -226,7 +226,7 @@ def show(case, res, peer: bool) -> None:
     best_peer = min(res["runs"]["peer"], key=lambda r: r[0]) if peer else None
     for smooth in ("default", "none"):
         wall, cpu, rss, t = min(res["runs"][smooth], key=lambda r: r[0])
-        stages = ["read", "extract", "smooth", "decimate", "write", "report"]
+        stages = ["read", "extract", "smooth", "decimate", "shells", "write", "report"]
         parts = {s: t.get(f"{s}_s", 0.0) for s in stages}
         rest = wall - t.get("total_s", 0.0) - t.get("report_s", 0.0)
         label = "ours, default smoothing" if smooth == "default" else "ours, --smooth none     "
