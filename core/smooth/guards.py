@@ -104,7 +104,8 @@ class VolumeRegions:
             raise AnatomeshError(f"face_sides name region {sides.max()} but only {tg.size} targets")
         self.free = ~np.isfinite(tg)
         self.faces, self.targets, self.r = faces, tg, tg.size
-        self.inside, self.outside = (_region_ids(sides[:, j], self.free) for j in (0, 1))
+        self.inside = _region_ids(sides[:, 0], self.free)
+        self.outside = _region_ids(sides[:, 1], self.free)
         self.touching = bool(np.any((self.inside >= 0) & (self.outside >= 0)))
         m = faces.shape[0]
         self.areas, self.tet = np.empty(m), np.empty(m)

@@ -7,9 +7,9 @@ vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets"
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
 ``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings,
 padded columns, vertex → faces), the cell boxes, the regions and target volumes of the volume
-step, the faces bucketed by their boxes (which pairs can
-cross, :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the
-second run on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
+step, the faces bucketed by their boxes (which pairs can cross,
+:class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the second run
+on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
 whole default driver — filter, fold guard, volume step, fold guard, untangling — for any
 settings; :meth:`SmoothingSession.smooth` adds the per-shell report.
 
