@@ -38,7 +38,7 @@ from .filters import FILTERS
 from .guards import VolumeRegions, component_regions, unfold_in_place
 from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
-from .shell_measures import ShellMeasures, shell_key, shell_warnings
+from .shell_measures import ShellMeasures, label_sides, shell_key, shell_warnings
 from .untangle import faces_around, untangle as untangle_crossings
 from ..geometry.face_pairs import FaceBoxes
 from ..geometry.neighbors import MeshStructure
@@ -122,13 +122,8 @@ class SmoothingSession:
 
     def _make_regions(self) -> VolumeRegions:
         if self.has_lattice:
-            fl = np.asarray(self.surfaces.face_labels)
-            present = np.zeros(max(int(fl.max(initial=0)), self.surfaces.background) + 1, bool)
-            present[fl.ravel()] = True
-            present[self.surfaces.background] = False
-            index = (np.cumsum(present) - 1).astype(np.int32)  # memory: (M, 2) int32 sides
-            index[~present] = -1
-            sides, n = index[fl], int(present.sum())
+            sides, values = label_sides(self.surfaces)
+            n = len(values)
         else:
             sides, n = component_regions(self.structure)
         regions = VolumeRegions(self.structure.faces, sides, np.zeros(n))

@@ -35,6 +35,15 @@ _SIGNED = np.array([False, True, False, False, False, False, False])
 _BLOCK = 1 << 18
 
 
+def label_sides(surfaces: SurfaceSet) -> Tuple[np.ndarray, List[int]]:
+    """``(sides (M, 2) int32, values)``: the index in ``values`` (``surfaces.values()``, the
+    labels with faces) of the label on each side of every face, −1 for the background."""
+    values = surfaces.values()
+    index = np.full(max(values + [surfaces.background, 0]) + 1, -1, np.int32)
+    index[np.asarray(values, np.int64)] = np.arange(len(values))
+    return np.ascontiguousarray(index[surfaces.face_labels]), values
+
+
 def shell_key(value) -> int:
     """The report key of a shell: its value, an int when whole."""
     key = 0 if value is None else value
@@ -53,10 +62,7 @@ class ShellMeasures:
 
     def __init__(self, surfaces: SurfaceSet, rest: np.ndarray, structure: MeshStructure):
         self.surfaces, self.rest, self.s = surfaces, rest, structure
-        self.values = surfaces.values()
-        index = np.full(max(self.values + [surfaces.background, 0]) + 1, -1, np.int32)
-        index[np.asarray(self.values, np.int64)] = np.arange(len(self.values))
-        self.sides = np.ascontiguousarray(index[surfaces.face_labels])
+        self.sides, self.values = label_sides(surfaces)
         self.origin = rest[0] if len(rest) else np.zeros(3)
         self.before = self._sums(rest)[0]
         self._topology: Optional[List[dict]] = None
