@@ -29,7 +29,7 @@ from typing import Callable, Dict, List, Optional
 
 import bpy
 
-from ..app.warmup import DEFAULT_STEPS, EXTRA_STEPS
+from ..app.warmup import DEFAULT_STEPS, EXTRA_STEPS, command_as
 
 #: the add-on's root package (``bl_ext.<repo>.anatomesh`` in Blender) and its folder
 PACKAGE = __package__.rpartition(".")[0]
@@ -45,27 +45,10 @@ _PROCESS: Optional[subprocess.Popen] = None
 _LINES: List[str] = []
 _WAITING: List[tuple] = []  # (step, callback) run once the step is done
 
-# the child process: make the add-on's parent packages importable, then run the warm-up module
-# under the add-on's package name (sys.argv: package, folder holding the package)
-_BOOTSTRAP = """
-import runpy, sys, types
-package, parent_dir = sys.argv[1], sys.argv[2]
-parts = package.split(".")
-for i in range(1, len(parts)):
-    name = ".".join(parts[:i])
-    if name not in sys.modules:
-        mod = types.ModuleType(name)
-        mod.__path__ = [parent_dir] if i == len(parts) - 1 else []
-        sys.modules[name] = mod
-sys.argv = [sys.argv[0]] + sys.argv[3:]
-runpy.run_module(package + ".app.warmup", run_name="__main__", alter_sys=True)
-"""
-
 
 def command(steps=None) -> List[str]:
     """The background process's command line: Blender's Python on the warm-up module."""
-    args = [sys.executable, "-c", _BOOTSTRAP, PACKAGE, str(ROOT.parent)]
-    return args + (["--steps", ",".join(steps)] if steps else [])
+    return command_as(PACKAGE, str(ROOT.parent), ["--steps", ",".join(steps)] if steps else [])
 
 
 def start(force: bool = False, steps=None) -> bool:

@@ -289,7 +289,8 @@ def _more_types(folder: Path) -> None:
 def _smoothing(folder: Path) -> None:
     """The default smoothing (:func:`anatomesh.app.stages.smooth`) of label surfaces (thick
     slices: with the staircase pass; isotropic) and of an isosurface, the cached session the
-    live sliders run (:class:`anatomesh.core.smooth.session.SmoothingSession`), and the rounds
+    live sliders run (:class:`anatomesh.core.smooth.session.SmoothingSession`) with and without
+    a maximum deviation, and the rounds
     that unfold and untangle again after untangling."""
     from ..core.extract.isosurface import isosurfaces
     from ..core.extract.multilabel import label_surfaces
@@ -304,7 +305,11 @@ def _smoothing(folder: Path) -> None:
     iso = isosurfaces(_scan(np.int16), [300.0], cap=True)
     stages.smooth(SurfaceSet.from_meshes(iso, np.eye(4)), Recipe())
     method, settings = stages.smoothing(Recipe())
-    SmoothingSession(s).run(method, **settings)
+    live = SmoothingSession(s)
+    live.run(method, **settings)
+    # a slider's second run (the candidate pairs listed once, then only tested) with the
+    # panel's "max deviation" (a cap around each start: other passes)
+    live.run(method, **dict(settings, max_deviation=1.0))
     # the unfold and untangle rounds after an untangling that turned faces over (bone
     # isosurfaces): a face turned over by swapping two of its corners
     session = SmoothingSession(SurfaceSet.from_meshes(iso, np.eye(4)))
@@ -339,15 +344,47 @@ _STEPS: Dict[str, Callable[[Path], None]] = {
 }
 
 
+# a child process running this module under another root package name (the add-on's
+# ``bl_ext.<repo>.anatomesh``): make that package's parents importable, then run it
+# (sys.argv: package, folder holding the package, the warm-up's own arguments)
+_BOOTSTRAP = """
+import runpy, sys, types
+package, parent_dir = sys.argv[1], sys.argv[2]
+parts = package.split(".")
+for i in range(1, len(parts)):
+    name = ".".join(parts[:i])
+    if name not in sys.modules:
+        mod = types.ModuleType(name)
+        mod.__path__ = [parent_dir] if i == len(parts) - 1 else []
+        sys.modules[name] = mod
+sys.argv = [sys.argv[0]] + sys.argv[3:]
+runpy.run_module(package + ".app.warmup", run_name="__main__", alter_sys=True)
+"""
+
+
+def command_as(package: str, parent_dir: str, args: Optional[List[str]] = None) -> List[str]:
+    """The command line running this warm-up with this Python under the root package name
+    ``package`` (e.g. ``bl_ext.<repo>.anatomesh``), imported from ``parent_dir`` (absolute, as
+    the kernels will be imported later: numba's cache remembers the module name and path)."""
+    return [sys.executable, "-c", _BOOTSTRAP, package, str(parent_dir)] + list(args or [])
+
+
 def main(argv: Optional[List[str]] = None) -> int:
-    """``python -m anatomesh.app.warmup [--default-only | --steps A,B] [--lanes N] [--quiet]``.
+    """``python -m anatomesh.app.warmup [--default-only | --steps A,B] [--lanes N] [--quiet]
+    [--as PACKAGE FOLDER]``.
 
     Run as a script, ``N`` processes (default :data:`LANES`) share the compiling: this one and
     ``N - 1`` copies of its own command line (``--lane``, :func:`sharing_kernels`). Prints one
     line per step once every lane has passed the steps before it (``warmup <i>/<n> <step>``),
     after it ``  <seconds> s, <k> kernels compiled``, and at the end ``warmup done <seconds> s,
-    <k> kernels compiled`` (0 when every kernel came from numba's cache)."""
+    <k> kernels compiled`` (0 when every kernel came from numba's cache). ``--as`` runs it
+    under another package name (:func:`command_as`; the add-on's tests warm their cache so)."""
     args = list(sys.argv[1:] if argv is None else argv)
+    if "--as" in args:
+        at = args.index("--as")
+        package, folder = args[at + 1:at + 3]
+        rest = args[:at] + args[at + 3:]
+        return subprocess.run(command_as(package, os.path.abspath(folder), rest)).returncode
     names = list(DEFAULT_STEPS) + ([] if "--default-only" in args else list(EXTRA_STEPS))
     if "--steps" in args:
         names = [n.strip() for n in _option(args, "--steps").split(",") if n.strip()]

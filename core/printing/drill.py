@@ -29,14 +29,18 @@ def _patch(v, f, point, axis, radius) -> np.ndarray:
     """(M,) bool: faces connected to the face nearest ``point`` within 2.5·radius of it whose
     normals face the same way along the axis (the surface the hole goes through, not the far
     side of a thin wall)."""
-    c = v[f].mean(axis=1)
-    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    c = (v[f[:, 0]] + v[f[:, 1]] + v[f[:, 2]]) / 3.0
+    to_point = np.linalg.norm(c - point, axis=1)
+    seed = int(np.argmin(to_point))
+    ci = np.union1d(np.flatnonzero(to_point < 2.5 * radius), [seed])  # normals of these only
+    g = f[ci]
+    n = np.cross(v[g[:, 1]] - v[g[:, 0]], v[g[:, 2]] - v[g[:, 0]])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    seed = int(np.argmin(np.linalg.norm(c - point, axis=1)))
-    sign = np.sign(n[seed] @ axis) or 1.0
-    cand = (np.linalg.norm(c - point, axis=1) < 2.5 * radius) & (sign * (n @ axis) > 0.2)
-    cand[seed] = True
-    ci = np.flatnonzero(cand)
+    at_seed = n[np.searchsorted(ci, seed)]
+    sign = np.sign(at_seed @ axis) or 1.0
+    ci = ci[(sign * (n @ axis) > 0.2) | (ci == seed)]
+    cand = np.zeros(len(f), bool)
+    cand[ci] = True
     e = np.concatenate([f[ci][:, [0, 1]], f[ci][:, [1, 2]], f[ci][:, [2, 0]]])
     owner = np.tile(ci, 3)
     key = np.minimum(e[:, 0], e[:, 1]) * len(v) + np.maximum(e[:, 0], e[:, 1])
@@ -58,7 +62,8 @@ def drill(v: np.ndarray, f: np.ndarray, point: np.ndarray, axis: np.ndarray, rad
     def facing(vv, ff):
         return _patch(vv, ff, point, axis, radius)
 
-    v, f, _ = refine_near(v, f, point, 1.5 * radius, _EDGE_FRACTION * radius, select=facing)
+    v, f, _ = refine_near(v, f, point, 1.5 * radius, _EDGE_FRACTION * radius, select=facing,
+                          reach=2.5 * radius)  # the patch's reach (:func:`_patch`)
     patch = _patch(v, f, point, axis, radius)
     rel = v - point
     dist = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
@@ -82,7 +87,7 @@ def _hole_loop(f: np.ndarray, n: int, first_new: int, point) -> np.ndarray:
     created (indices from ``first_new``): the new hole, not one drilled before."""
     from .fixes import boundary_loops
 
-    loops, _ = boundary_loops(f, n)
+    loops, _ = boundary_loops(f[(f >= first_new).any(axis=1)], n)  # every face at a new vertex
     near = [lp for lp in loops if np.all(lp >= first_new)]
     if len(near) != 1:
         raise AnatomeshError(f"drilling at {np.round(point, 1).tolist()} left {len(near)} holes instead "

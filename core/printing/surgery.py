@@ -38,13 +38,17 @@ def split_faces(v: np.ndarray, f: np.ndarray, want: np.ndarray) -> Tuple[np.ndar
     """Split the faces ``want`` (M,) bool 1:4 at their edge midpoints; a neighbour with one split
     edge is bisected, one with two has its third edge split too (repeated until none has two).
 
-    Returns (vertices, faces, parent (M',) int64: the face each new face came from)."""
+    Only the faces touching a split edge's end are looked at (a third edge joins two such ends
+    already), so a small patch costs little on a large mesh. Returns (vertices, faces, parent
+    (M',) int64: the face each new face came from)."""
     n = len(v)
-    keys = _edges(f, n)
-    split = np.unique(keys[want])
+    split = np.unique(_edges(f[want], n))
+    mark = np.zeros(n, bool)
+    mark[split // n] = mark[split % n] = True
+    touched = np.flatnonzero(mark[f].any(axis=1))  # the faces that may hold a split edge
+    keys = _edges(f[touched], n)
     while True:
-        cnt = np.isin(keys, split).sum(axis=1)
-        two = cnt == 2
+        two = np.isin(keys, split).sum(axis=1) == 2
         if not np.any(two):
             break
         split = np.union1d(split, keys[two].ravel())
@@ -52,44 +56,55 @@ def split_faces(v: np.ndarray, f: np.ndarray, want: np.ndarray) -> Tuple[np.ndar
     a, b = split // n, split % n
     nv = np.concatenate([v, 0.5 * (v[a] + v[b])])
     is_split = np.isin(keys, split)
-    m_of = np.where(is_split, mid[np.clip(np.searchsorted(split, keys), 0, max(split.size - 1, 0))], -1) \
-        if split.size else np.full(keys.shape, -1)
-    cnt = is_split.sum(axis=1)
+    m_of = np.where(is_split, mid[np.clip(np.searchsorted(split, keys), 0, max(split.size - 1, 0))], -1)
+    cnt_t = is_split.sum(axis=1)
+    cnt = np.zeros(len(f), np.int64)
+    cnt[touched] = cnt_t
     out, parent = [f[cnt == 0]], [np.flatnonzero(cnt == 0)]
-    one = np.flatnonzero(cnt == 1)
+    one = np.flatnonzero(cnt_t == 1)  # rows of the touched faces
     if one.size:
         k = np.argmax(is_split[one], axis=1)  # the split edge (k, k+1)
+        g = f[touched[one]]
         r = np.arange(one.size)
-        p0, p1, p2 = f[one, k], f[one, (k + 1) % 3], f[one, (k + 2) % 3]
+        p0, p1, p2 = g[r, k], g[r, (k + 1) % 3], g[r, (k + 2) % 3]
         m = m_of[one, k]
         out += [np.stack([p0, m, p2], 1), np.stack([m, p1, p2], 1)]
-        parent += [one, one]
-        del r
-    three = np.flatnonzero(cnt == 3)
+        parent += [touched[one]] * 2
+    three = np.flatnonzero(cnt_t == 3)
     if three.size:
-        p0, p1, p2 = f[three, 0], f[three, 1], f[three, 2]
-        m01, m12, m20 = m_of[three, 0], m_of[three, 1], m_of[three, 2]
+        g, m3 = f[touched[three]], m_of[three]
+        p0, p1, p2 = g[:, 0], g[:, 1], g[:, 2]
+        m01, m12, m20 = m3[:, 0], m3[:, 1], m3[:, 2]
         out += [np.stack([p0, m01, m20], 1), np.stack([m01, p1, m12], 1),
                 np.stack([m20, m12, p2], 1), np.stack([m01, m12, m20], 1)]
-        parent += [three] * 4
+        parent += [touched[three]] * 4
     return nv, np.concatenate(out).astype(np.int64), np.concatenate(parent).astype(np.int64)
 
 
 def refine_near(v: np.ndarray, f: np.ndarray, centre: np.ndarray, radius: float, max_edge: float,
-                select: Callable = None, max_rounds: int = 12):
+                select: Callable = None, reach: float = 0.0, max_rounds: int = 12):
     """Refine the faces within ``radius`` mm of ``centre`` (by centroid, plus the face's own
     size) until their longest edge is at most ``max_edge`` mm; ``select(v, f)`` → (M,) bool may
-    restrict which faces qualify. Returns (vertices, faces, parent) as :func:`split_faces`."""
+    restrict which faces qualify, and is shown the faces with a vertex within ``max(radius,
+    reach)`` mm of the centre plus twice the longest edge (every face whose centroid is within
+    ``reach``). Returns (vertices, faces, parent) as :func:`split_faces`."""
     parent = np.arange(len(f))
+    p = v[f]
+    longest = float(np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2).max()) if len(f) else 0.0
+    del p  # refining only shortens edges: faces farther than this bound never qualify
     for _ in range(max_rounds):
-        p = v[f]
+        to_centre = np.linalg.norm(v - centre, axis=1)
+        zone = np.flatnonzero(to_centre[f].min(axis=1) < max(radius, reach) + 2 * longest)
+        p = v[f[zone]]
         size = np.max(np.linalg.norm(p - np.roll(p, -1, axis=1), axis=2), axis=1)
         near = np.linalg.norm(p.mean(axis=1) - centre, axis=1) < radius + size
-        want = near & (size > max_edge)
+        ok = near & (size > max_edge)
         if select is not None:
-            want &= select(v, f)
-        if not np.any(want):
+            ok &= select(v, f[zone])
+        if not np.any(ok):
             break
+        want = np.zeros(len(f), bool)
+        want[zone[ok]] = True
         v, f, par = split_faces(v, f, want)
         parent = parent[par]
     return v, f, parent
