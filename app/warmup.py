@@ -141,10 +141,60 @@ def sharing_kernels(claims: Path):
 
     Dispatcher._compile_for_args = compile_or_interpret
     try:
-        with _on_compile(lambda func, types: _claim(claims, func, types)):
+        with _on_compile(lambda func, types: _claim(claims, func, types)), _saving_one_at_a_time(claims):
             yield
     finally:
         Dispatcher._compile_for_args = original
+
+
+@contextmanager
+def _saving_one_at_a_time(claims: Path):
+    """Within the block, numba saves a compiled kernel into its cache holding a lock shared by
+    the lanes: a kernel's index file is read, added to and written back, so two lanes saving
+    two argument types of one kernel at once would lose one of them (seen on CI: a second run
+    compiling again what the first had compiled)."""
+    from numba.core.caching import IndexDataCacheFile
+
+    save = IndexDataCacheFile.save
+
+    def locked_save(self, key, data):
+        with _locked(claims / "save.lock"):
+            return save(self, key, data)
+
+    IndexDataCacheFile.save = locked_save
+    try:
+        yield
+    finally:
+        IndexDataCacheFile.save = save
+
+
+@contextmanager
+def _locked(path: Path):
+    """An exclusive lock between processes on the file ``path`` (created if missing)."""
+    with open(path, "a+b") as fh:
+        if os.name == "nt":
+            import msvcrt
+
+            fh.seek(0)
+            while True:
+                try:
+                    msvcrt.locking(fh.fileno(), msvcrt.LK_LOCK, 1)  # itself retries for 10 s
+                    break
+                except OSError:
+                    continue
+            try:
+                yield
+            finally:
+                fh.seek(0)
+                msvcrt.locking(fh.fileno(), msvcrt.LK_UNLCK, 1)
+        else:
+            import fcntl
+
+            fcntl.flock(fh, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def _types(dispatcher, args) -> tuple:
@@ -290,11 +340,13 @@ def _smoothing(folder: Path) -> None:
     """The default smoothing (:func:`anatomesh.app.stages.smooth`) of label surfaces (thick
     slices: with the staircase pass; isotropic) and of an isosurface, the cached session the
     live sliders run (:class:`anatomesh.core.smooth.session.SmoothingSession`) with and without
-    a maximum deviation, and the rounds
+    a maximum deviation, the add-on's relaxing of selected vertices, and the rounds
     that unfold and untangle again after untangling."""
     from ..core.extract.isosurface import isosurfaces
     from ..core.extract.multilabel import label_surfaces
     from ..core.model.surfaceset import SurfaceSet
+    from ..core.smooth.constraints import Constraint
+    from ..core.smooth.driver import smooth
     from ..core.smooth.session import SmoothingSession
     from . import stages
     from .recipe import Recipe
@@ -310,6 +362,9 @@ def _smoothing(folder: Path) -> None:
     # a slider's second run (the candidate pairs listed once, then only tested) with the
     # panel's "max deviation" (a cap around each start: other passes)
     live.run(method, **dict(settings, max_deviation=1.0))
+    # the add-on's "relax selected" edit tool: Laplacian passes with a gain per vertex
+    smooth(s.vertices, s.faces, "laplacian", iterations=2, lam=0.5, fold_guard=True,
+           constraint=Constraint(max_deviation=1.0), gain=np.ones(len(s.vertices)))
     # the unfold and untangle rounds after an untangling that turned faces over (bone
     # isosurfaces): a face turned over by swapping two of its corners
     session = SmoothingSession(SurfaceSet.from_meshes(iso, np.eye(4)))
