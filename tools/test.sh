@@ -11,7 +11,7 @@ export NUMBA_CACHE_DIR="${NUMBA_CACHE_DIR:-$here/build/numba-cache-blender-tests
 bash tools/setup_env.sh
 ext="$here/build/blender-test-extensions/anatomesh_dev"
 mkdir -p "$ext"
-[ -e "$ext/anatomesh" ] || ln -s "$here" "$ext/anatomesh"
+ln -sfn "$here" "$ext/anatomesh"  # as tests/addon/conftest.py links it (a link left by another checkout replaced)
 "${ANATOMESH_VENV:-.venv}/bin/python" -m anatomesh.app.warmup --quiet --as bl_ext.anatomesh_dev.anatomesh "$ext" \
   || echo "warning: the add-on's kernel warm-up failed; the Blender tests compile them" >&2
 exec "${ANATOMESH_VENV:-.venv}/bin/python" -m pytest "$@"
