@@ -30,6 +30,21 @@ def _compiled(out: str) -> int:
     return int(re.search(r"warmup done [\d.]+ s, (\d+) kernels compiled", out).group(1))
 
 
+def test_as_runs_the_warmup_under_another_package_name_as_tools_test_sh_does(tmp_path):
+    """``--as PACKAGE FOLDER``: the kernels are compiled as that package's modules, imported from
+    that folder (what the Blender tests load: numba's cache remembers both)."""
+    root = tmp_path / "ext" / "repo"
+    root.mkdir(parents=True)
+    (root / "anatomesh").symlink_to(SAMPLE.parents[1], target_is_directory=True)
+    cache = tmp_path / "numba-cache"
+    out = _run(["-m", "anatomesh.app.warmup", "--as", "bl_ext.repo.anatomesh", str(root),
+                "--steps", "reading", "--lanes", "1"], cache)
+    assert out.returncode == 0, out.stderr
+    assert _compiled(out.stdout) >= 3
+    saved = list(cache.rglob("*.nbc"))
+    assert saved and all(b"bl_ext.repo.anatomesh.core.io." in f.read_bytes() for f in saved)
+
+
 def test_cold_warmup_compiles_into_a_fresh_folder_and_the_next_process_loads_it(tmp_path):
     cache = tmp_path / "numba-cache"
     first = _run(["-m", "anatomesh.app.warmup", "--steps", "reading"], cache)
