@@ -437,6 +437,11 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     if "--as" in args:
         at = args.index("--as")
+        if len(args) < at + 3:
+            print("anatomesh warmup: --as needs a package name and its folder, e.g. "
+                  "--as bl_ext.user_default.anatomesh ~/.config/blender/5.0/extensions/user_default",
+                  file=sys.stderr)
+            return 2
         package, folder = args[at + 1:at + 3]
         rest = args[:at] + args[at + 3:]
         return subprocess.run(command_as(package, os.path.abspath(folder), rest)).returncode
