@@ -5,7 +5,7 @@ side, ``uint8`` or ``uint16``, shape (n0, n1, n2). Lattice point (a, b, c) of ``
 shared by voxels (a-1..a, b-1..b, c-1..c); used points have a, b, c >= 1. Work is split by
 lattice planes ``a`` (the outermost axis in C order): count per plane, prefix sums, then fill —
 so the output does not depend on the number of threads. Only ``count`` and ``emit`` are parallel
-(with serial twins, ``count_serial`` and ``emit_serial``, for small maps);
+(small maps run ``count_serial`` and one :func:`emit_run` on one thread instead);
 the other passes are cheap (memory-bound or sparse) and a parallel region costs milliseconds
 when other processes share the cores.
 
@@ -154,7 +154,8 @@ def count(P):
     nv = np.zeros(n0 + 1, np.int64)
     nf = np.zeros(n0 + 1, np.int64)
     for a in prange(1, n0):
-        nv[a], nf[a] = _count_plane(P, a, np.zeros(n2, np.uint8), np.zeros(n2, np.uint8))
+        # int64 plane numbers (prange's are unsigned): count_serial's _count_plane serves both
+        nv[a], nf[a] = _count_plane(P, np.int64(a), np.zeros(n2, np.uint8), np.zeros(n2, np.uint8))
     return nv, nf
 
 
@@ -203,9 +204,11 @@ def _plane_vertices(P, a, start, ids, mask, write, bg, needs, origin, M, offset,
                 n += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _config(P, a, b, c, L):
-    """8-bit mask of the voxels around padded lattice point (a, b, c) holding label L."""
+    """8-bit mask of the voxels around padded lattice point (a, b, c) holding label L. An
+    ordinary call: its caller :func:`_fan` runs at complex vertices only, and inlining it there
+    twice compiled 0.4 s slower."""
     r00 = P[a - 1, b - 1]
     r01 = P[a - 1, b]
     r10 = P[a, b - 1]
@@ -299,26 +302,19 @@ def emit(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks,
     inside label to the outside label in index space (reversed when ``flip``: a negative
     determinant affine mirrors space). Planes are processed in ``nchunks`` runs of consecutive
     planes, so each plane's vertex numbers are computed about once. Parallel over the runs;
-    :func:`emit_serial` is the same on one thread (same output).
+    :func:`emit_run` with ``nchunks=1, ch=0`` is the same on one thread (same output).
     """
-    for ch in prange(nchunks):
-        _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
-                    vertices, lattice, complex_, faces, labels)
+    for ch in prange(nchunks):  # an int64 run number (prange's is unsigned): one emit_run
+        emit_run(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, np.int64(ch),
+                 vertices, lattice, complex_, faces, labels)
 
 
 @njit(cache=True)
-def emit_serial(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks,
-                vertices, lattice, complex_, faces, labels):
-    """:func:`emit` on one thread (see :func:`count_serial`)."""
-    for ch in range(nchunks):
-        _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
-                    vertices, lattice, complex_, faces, labels)
-
-
-@njit(cache=True)
-def _emit_chunk(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
-                vertices, lattice, complex_, faces, labels):
-    """Vertices and faces of run ``ch`` of :func:`emit`: planes a0 .. a1 - 1."""
+def emit_run(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
+             vertices, lattice, complex_, faces, labels):
+    """Vertices and faces of run ``ch`` of :func:`emit`: planes a0 .. a1 - 1. Called from
+    Python with ``nchunks=1, ch=0`` it is :func:`emit` on one thread, for small maps (no
+    threads to start; and one kernel fewer to compile for the first extraction after install)."""
     n0, n1, n2 = P.shape
     a0 = 1 + ch * (n0 - 1) // nchunks
     a1 = 1 + (ch + 1) * (n0 - 1) // nchunks
@@ -439,16 +435,12 @@ def _quad_splits(P, bg, lattice, offset, faces, labels, complex_, cycle, joinabl
             cyc = _fan(P, a, b, c, L, face, cycle, joinable)
             if cyc <= 0:
                 continue
-            if k == 0:
-                n = _row(out, n, t0, side, 0, cyc)
-                n = _row(out, n, t1, side, 0, cyc)
-            elif k == 1:
-                n = _row(out, n, t0, side, 1, cyc)
-            elif k == 2:
-                n = _row(out, n, t0, side, 2, cyc)
-                n = _row(out, n, t1, side, 1, cyc)
-            else:
-                n = _row(out, n, t1, side, 2, cyc)
+            # the triangle corners vertex k occupies: k = 0: t0's 0 and t1's 0; k = 1: t0's 1;
+            # k = 2: t0's 2 and t1's 1; k = 3: t1's 2 (two call sites: each inlined copy of
+            # _row costs compile time)
+            n = _row(out, n, t0 if k < 3 else t1, side, min(k, 2), cyc)
+            if k == 0 or k == 2:
+                n = _row(out, n, t1, side, k // 2, cyc)
     return n
 
 

@@ -142,11 +142,14 @@ def _surface(P, bg, lo, origin, M, flip):
     complex_ = np.empty(n, np.uint8)
     faces = np.empty((2 * q, 3), np.int32)
     face_labels = np.empty((2 * q, 2), np.int32)
-    nchunks = max(1, min(P.shape[0] - 1, 4 * numba.get_num_threads()))
     offset = np.asarray(lo, np.int64)
-    (K.emit if parallel else K.emit_serial)(P, P.dtype.type(bg), voff, qoff, origin, M, offset,
-                                            flip, needs, nchunks, vertices, lattice, complex_,
-                                            faces, face_labels)
+    if parallel:
+        nchunks = max(1, min(P.shape[0] - 1, 4 * numba.get_num_threads()))
+        K.emit(P, P.dtype.type(bg), voff, qoff, origin, M, offset, flip, needs, nchunks,
+               vertices, lattice, complex_, faces, face_labels)
+    else:  # one run of planes on this thread
+        K.emit_run(P, P.dtype.type(bg), voff, qoff, origin, M, offset, flip, needs, 1, 0,
+                   vertices, lattice, complex_, faces, face_labels)
     splits = K.splits(P, bg, lattice, offset, faces, face_labels, complex_, cycle, joinable)
     splits = splits[np.argsort(splits[:, 0], kind="stable")]
     return vertices, faces, face_labels, lattice, splits

@@ -16,7 +16,9 @@ def group_faces(face_labels, index, nlabels):
             g = index[face_labels[f, s]]
             if g >= 0:
                 counts[g + 1] += 1
-    starts = np.cumsum(counts)
+    for g in range(nlabels):  # prefix sums in place (np.cumsum costs a compile of its own)
+        counts[g + 1] += counts[g]
+    starts = counts
     fill = starts[:-1].copy()
     order = np.empty(starts[-1], np.int64)
     for f in range(m):

@@ -289,7 +289,7 @@ def test_output_does_not_depend_on_thread_count(monkeypatch):
 
 def test_serial_twins_give_the_parallel_kernels_output(monkeypatch):
     a = np.asfortranarray(np.random.default_rng(12).integers(0, 6, (25, 14, 11)).astype(np.uint8))
-    monkeypatch.setattr(labels_module, "PARALLEL_MIN_VOXELS", 10**12)  # count/emit_serial
+    monkeypatch.setattr(labels_module, "PARALLEL_MIN_VOXELS", 10**12)  # count_serial, one emit_run
     serial = label_surfaces(a)
     monkeypatch.setattr(labels_module, "PARALLEL_MIN_VOXELS", 0)  # the prange kernels
     parallel = label_surfaces(a)
