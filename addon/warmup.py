@@ -113,9 +113,27 @@ def when_ready(step: str, callback: Callable[[], None]) -> None:
         _WAITING.append((step, callback))
 
 
+def reading_step(path: str) -> str:
+    """The warm-up step whose kernels reading ``path`` needs: "reading" for NIfTI/NRRD files and
+    mask folders; DICOM's pixel layout kernels compile with the scans' ("isosurfaces")."""
+    from ..core.io.load import NIFTI_SUFFIXES, NRRD_SUFFIXES
+    from ..core.io.masks import mask_files
+
+    path = bpy.path.abspath(path)
+    name = os.path.basename(os.path.normpath(path)).lower()
+    if not path or name.endswith(NIFTI_SUFFIXES + NRRD_SUFFIXES) or mask_files(path):
+        return "reading"
+    return "isosurfaces"
+
+
 def extraction_step(volume) -> str:
-    """The warm-up step whose kernels extracting ``volume``'s surfaces needs."""
-    return "label surfaces" if volume.is_label_map else "isosurfaces"
+    """The warm-up step whose kernels extracting ``volume``'s surfaces needs (large label maps
+    run parallel passes of their own)."""
+    from ..core.extract.multilabel import PARALLEL_MIN_VOXELS
+
+    if not volume.is_label_map:
+        return "isosurfaces"
+    return "large label maps" if volume.data.size >= PARALLEL_MIN_VOXELS else "label surfaces"
 
 
 def defer(op, step: str = "reading") -> bool:

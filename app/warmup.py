@@ -44,7 +44,8 @@ import numpy as np
 #: what a first session needs first — reading, extraction of label maps and of scans (the
 #: add-on's first extraction waits for these), the default smoothing, the run's report and files
 #: — then the rest
-DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "smoothing", "files and report")
+DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "large label maps", "smoothing",
+                 "files and report")
 EXTRA_STEPS = ("more data types", "decimation and levels of detail", "print checks and fixes")
 
 #: processes sharing a first run's compiling (:func:`main`)
@@ -294,32 +295,59 @@ def _mesh(folder: Path, source: str, **settings) -> None:
 
 # -- the steps -------------------------------------------------------------------------------------
 def _reading(folder: Path) -> None:
-    """Counting values (label detection, input facts) and the DICOM slice layout kernel."""
-    from ..core.io.dicom_pixels import to_volume_layout
+    """Counting values (label detection, input facts): what reading a NIfTI/NRRD file or a mask
+    folder compiles (DICOM series: with the scans, :func:`_isosurfaces`)."""
     from ..core.io.values import value_counts
 
     for dtype in (np.bool_, np.uint8, np.uint16, np.int16, np.int32):
         value_counts(_label_map(dtype))
+
+
+def _label_surfaces(folder: Path) -> None:
+    """A uint8 label map's surfaces extracted and split into shells (no file: the lanes start
+    compiling without importing and running a reader first)."""
+    from ..core.extract.multilabel import label_surfaces
+
+    label_surfaces(_label_map(np.uint8), affine=np.diag([1.0, 1.0, 2.5, 1.0])).shells()
+
+
+def _isosurfaces(folder: Path) -> None:
+    """The DICOM slice layout kernel (a CT or MR series' pixels; the add-on's import of DICOM
+    waits for this step), then an int16 scan read from NIfTI and its isosurface at one level.
+    After the label maps' steps: the first extraction of a label map waits less."""
+    from ..core.extract.isosurface import isosurfaces
+    from ..core.io import load
+    from ..core.io.dicom_pixels import to_volume_layout
+
     for stored in (np.uint16, np.int16):
         stack = np.arange(2 * 3 * 4, dtype=stored).reshape(2, 3, 4)
         to_volume_layout(stack, np.ones(2), np.full(2, -1024.0))  # integer rescale → int16
         to_volume_layout(stack, np.full(2, 0.5), np.zeros(2))      # fractional → float32
-
-
-def _label_surfaces(folder: Path) -> None:
-    """A uint8 label map read from NIfTI, its surfaces extracted and split into shells."""
-    from ..core.extract.multilabel import label_surfaces
-    from ..core.io import load
-
-    label_surfaces(load(_save_nifti(_label_map(np.uint8), folder / "u8.nii.gz"))).shells()
-
-
-def _isosurfaces(folder: Path) -> None:
-    """An int16 scan read from NIfTI, its isosurface at one level."""
-    from ..core.extract.isosurface import isosurfaces
-    from ..core.io import load
-
     isosurfaces(load(_save_nifti(_scan(np.int16), folder / "i16.nii.gz")), [300.0], cap=True)
+
+
+def _large_label_maps(folder: Path) -> None:
+    """The label extraction's two parallel passes, which maps of more than
+    :data:`~anatomesh.core.extract.multilabel.PARALLEL_MIN_VOXELS` voxels run (after the small
+    maps' steps: ~7 s of compiling)."""
+    from ..core.extract.multilabel import label_surfaces
+
+    with _parallel_label_passes():
+        label_surfaces(_label_map(np.uint8))
+
+
+@contextmanager
+def _parallel_label_passes():
+    """Within the block, label maps of any size run the parallel passes (tiny inputs compile
+    what large maps run)."""
+    from ..core.extract import multilabel
+
+    threshold = multilabel.PARALLEL_MIN_VOXELS
+    multilabel.PARALLEL_MIN_VOXELS = 0
+    try:
+        yield
+    finally:
+        multilabel.PARALLEL_MIN_VOXELS = threshold
 
 
 def _files_and_report(folder: Path) -> None:
@@ -330,8 +358,13 @@ def _files_and_report(folder: Path) -> None:
 
 
 def _more_types(folder: Path) -> None:
-    """Label maps with values above 255 (uint16) and float32 scans at two levels."""
+    """Label maps with values above 255 (uint16; small and large) and float32 scans at two
+    levels."""
+    from ..core.extract.multilabel import label_surfaces
+
     _mesh(folder / "u16", _save_nifti(_label_map(np.uint16, big=300), folder / "u16.nii.gz"))
+    with _parallel_label_passes():
+        label_surfaces(_label_map(np.uint16, big=300))
     _mesh(folder / "f32", _save_nifti(_scan(np.float32) + 0.5, folder / "f32.nii.gz",
                                       spacing=(1.0, 1.0, 1.0)), levels=[300.0, -400.0])
 
@@ -391,6 +424,7 @@ _STEPS: Dict[str, Callable[[Path], None]] = {
     "reading": _reading,
     "label surfaces": _label_surfaces,
     "isosurfaces": _isosurfaces,
+    "large label maps": _large_label_maps,
     "smoothing": _smoothing,
     "files and report": _files_and_report,
     "more data types": _more_types,

@@ -84,7 +84,7 @@ class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
     @guarded
     def execute(self, context):
         # speed (first run): while the kernels compile in the background, run again when ready
-        if warmup.defer(self, "reading"):
+        if warmup.defer(self, warmup.reading_step(self.filepath)):
             return {"FINISHED"}
         settings = context.scene.anatomesh
         t0 = time.perf_counter()
@@ -144,14 +144,14 @@ class ANATOMESH_OT_extract(bpy.types.Operator):
 
     @guarded
     def execute(self, context):
-        if warmup.defer(self, "reading"):  # speed (first run): again when the kernels are ready
-            return {"FINISHED"}
         settings = context.scene.anatomesh
         path = self.filepath or settings.filepath
         if not path:
             from ...core.model.errors import AnatomeshError
 
             raise AnatomeshError("no scan chosen: set the file in the Import panel or pass filepath=")
+        if warmup.defer(self, warmup.reading_step(path)):  # first run: again when they are ready
+            return {"FINISHED"}
         space = settings.space if self.space == "SETTINGS" else self.space
         series = self.series or (settings.series if not self.filepath else "")
         table = self.label_table or (settings.label_table if not self.filepath else "")

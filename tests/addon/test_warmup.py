@@ -9,7 +9,7 @@ import sys
 
 import bpy
 import pytest
-from conftest import SAMPLE
+from conftest import SAMPLE, shared
 
 
 @pytest.fixture
@@ -53,3 +53,32 @@ def test_start_wait_stamp_and_operators_deferred_until_ready(warmup, empty_scene
     assert warmup.stamp_path().exists()
     assert not warmup.start()  # the stamp says these sources are compiled: no new process
     assert warmup.status_text() == ""
+
+
+def test_reading_waits_for_reading_and_a_dicom_series_for_the_scans_step(warmup, tmp_path):
+    """The label maps' first extraction waits for the fewest kernels: DICOM's pixel layout
+    compiles with the scans (``isosurfaces``), NIfTI/NRRD files and mask folders only count
+    values (``reading``)."""
+    assert warmup.reading_step(str(SAMPLE / "example_seg.nii.gz")) == "reading"
+    masks = tmp_path / "segmentations"
+    masks.mkdir()
+    (masks / "liver.nii.gz").write_bytes(b"")  # a TotalSegmentator mask folder (by its names)
+    assert warmup.reading_step(str(masks)) == "reading"
+    series = shared("itkelastix_chest_ct")
+    assert warmup.reading_step(str(series)) == "isosurfaces"
+    assert warmup.reading_step(str(next(series.glob("*.dcm")))) == "isosurfaces"
+    assert "isosurfaces" in warmup.STEPS and "reading" in warmup.STEPS
+
+
+def test_large_label_maps_wait_for_their_parallel_passes(warmup):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    def volume(shape, labels=True):
+        return SimpleNamespace(is_label_map=labels, data=np.broadcast_to(np.uint8(0), shape))
+
+    assert warmup.extraction_step(volume((122, 101, 112))) == "label surfaces"
+    assert warmup.extraction_step(volume((512, 512, 200))) == "large label maps"
+    assert warmup.extraction_step(volume((512, 512, 200), labels=False)) == "isosurfaces"
+    assert warmup.STEPS.index("large label maps") > warmup.STEPS.index("label surfaces")
