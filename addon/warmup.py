@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
 import bpy
+import numpy as np
 
 from ..app.warmup import DEFAULT_STEPS, EXTRA_STEPS, command_as
 
@@ -133,7 +134,8 @@ def extraction_step(volume) -> str:
 
     if not volume.is_label_map:
         return "isosurfaces"
-    return "large label maps" if volume.data.size >= PARALLEL_MIN_VOXELS else "label surfaces"
+    voxels = int(np.prod(volume.shape))  # a Volume or a Segmentation's grid
+    return "large label maps" if voxels >= PARALLEL_MIN_VOXELS else "label surfaces"
 
 
 def defer(op, step: str = "reading") -> bool:

@@ -70,13 +70,15 @@ def test_reading_waits_for_reading_and_a_dicom_series_for_the_scans_step(warmup,
     assert "isosurfaces" in warmup.STEPS and "reading" in warmup.STEPS
 
 
-def test_large_label_maps_wait_for_their_parallel_passes(warmup):
+def test_large_label_maps_wait_for_their_parallel_passes(warmup, addon):
+    import importlib
     from types import SimpleNamespace
 
-    import numpy as np
+    load = importlib.import_module(addon.__name__ + ".core").load
+    assert warmup.extraction_step(load(str(SAMPLE / "example_seg.nii.gz"))) == "label surfaces"
 
-    def volume(shape, labels=True):
-        return SimpleNamespace(is_label_map=labels, data=np.broadcast_to(np.uint8(0), shape))
+    def volume(shape, labels=True):  # what a Volume and a Segmentation (layers) both have
+        return SimpleNamespace(is_label_map=labels, shape=shape)
 
     assert warmup.extraction_step(volume((122, 101, 112))) == "label surfaces"
     assert warmup.extraction_step(volume((512, 512, 200))) == "large label maps"
