@@ -141,3 +141,27 @@ def test_two_lanes_share_a_cold_first_run_and_the_first_extraction_compiles_noth
     after = _run(["-c", code], cache)
     assert after.returncode == 0, after.stderr
     assert "COMPILED []" in after.stdout and "SHELLS 0" not in after.stdout
+
+
+def test_after_its_steps_a_large_label_map_compiles_nothing(tmp_path):
+    """The parallel passes of maps above PARALLEL_MIN_VOXELS have a step of their own (Blender
+    used to compile them, frozen, on the first large map after a complete warm-up); the label
+    steps leave nothing to compile for the sample's extraction, small or large."""
+    cache = tmp_path / "numba-cache"
+    steps = "reading,label surfaces,large label maps"
+    warm = _run(["-m", "anatomesh.app.warmup", "--steps", steps, "--lanes", "1"], cache)
+    assert warm.returncode == 0, warm.stderr
+    assert _compiled(warm.stdout) >= 10
+    code = ("from anatomesh.app.warmup import counting_compiles\n"
+            "from anatomesh.core.io import load\n"
+            "from anatomesh.core.extract import multilabel\n"
+            f"vol = load({str(SAMPLE / 'example_seg.nii.gz')!r})\n"
+            "with counting_compiles() as names:\n"
+            "    small = multilabel.label_surfaces(vol).shells()\n"
+            "    multilabel.PARALLEL_MIN_VOXELS = 0\n"
+            "    large = multilabel.label_surfaces(vol).shells()\n"
+            "assert len(small) == len(large) == 41\n"
+            "print('COMPILED', len(names), names)\n")
+    out = _run(["-c", code], cache)
+    assert out.returncode == 0, out.stderr
+    assert "COMPILED 0 []" in out.stdout
