@@ -20,6 +20,7 @@ this numba, so later sessions start no process at all.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import subprocess
 import sys
@@ -28,7 +29,6 @@ from pathlib import Path
 from typing import Callable, Dict, List, Optional
 
 import bpy
-import numpy as np
 
 from ..app.warmup import DEFAULT_STEPS, EXTRA_STEPS, command_as
 
@@ -134,7 +134,7 @@ def extraction_step(volume) -> str:
 
     if not volume.is_label_map:
         return "isosurfaces"
-    voxels = int(np.prod(volume.shape))  # a Volume or a Segmentation's grid
+    voxels = math.prod(volume.shape)  # a Volume or a Segmentation's grid
     return "large label maps" if voxels >= PARALLEL_MIN_VOXELS else "label surfaces"
 
 
