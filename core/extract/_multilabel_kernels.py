@@ -22,11 +22,12 @@ from numba import njit, prange
 # scan and crop
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
-def bounding_box(data, bg, lut, use_lut):
-    """Inclusive index box (i0, i1, j0, j1, k0, k1) of the voxels that are not ``bg`` (or, when
-    ``use_lut``, whose ``lut[value]`` is non-zero); i0 > i1 when there are none."""
+def bounding_box(data, bg, lut, use_lut, box, out):
+    """The inclusive index box (i0, i1, j0, j1, k0, k1) of the voxels that are not ``bg`` (or,
+    when ``use_lut``, whose ``lut[value]`` is non-zero) into ``out`` (6,) int64; i0 > i1 when
+    there are none. ``box`` is (n0, 4) int64 scratch (the arrays come from the caller: a kernel
+    that allocates none compiles faster, the first run after install)."""
     n0, n1, n2 = data.shape
-    box = np.empty((n0, 6), np.int64)
     for i in range(n0):
         j0, j1, k0, k1 = n1, -1, n2, -1
         for j in range(n1):
@@ -54,7 +55,7 @@ def bounding_box(data, bg, lut, use_lut):
         box[i, 1] = j1
         box[i, 2] = k0
         box[i, 3] = k1
-    out = np.array([n0, -1, n1, -1, n2, -1], np.int64)
+    out[0], out[1], out[2], out[3], out[4], out[5] = n0, -1, n1, -1, n2, -1
     for i in range(n0):
         if box[i, 1] >= 0:
             out[0] = min(out[0], i)
@@ -63,7 +64,6 @@ def bounding_box(data, bg, lut, use_lut):
             out[3] = max(out[3], box[i, 1])
             out[4] = min(out[4], box[i, 2])
             out[5] = max(out[5], box[i, 3])
-    return out
 
 
 @njit(cache=True)
@@ -144,46 +144,39 @@ def _count_plane(P, a, mv, mf):
 
 
 @njit(parallel=True, cache=True)
-def count(P):
-    """Per lattice plane a: used lattice points ``nv[a]`` and faces owned ``nf[a]`` (quads).
+def count(P, nv, nf):
+    """Per lattice plane a: used lattice points into ``nv[a]`` and faces owned into ``nf[a]``
+    (quads), both (n0 + 1,) int64.
 
     Plane a owns the x-faces on it (between voxels a-1 and a) and the y- and z-faces of voxel
     slab a. Parallel over planes; :func:`count_serial` is the same on one thread.
     """
     n0, n1, n2 = P.shape
-    nv = np.zeros(n0 + 1, np.int64)
-    nf = np.zeros(n0 + 1, np.int64)
     for a in prange(1, n0):
         # int64 plane numbers (prange's are unsigned): count_serial's _count_plane serves both
         nv[a], nf[a] = _count_plane(P, np.int64(a), np.zeros(n2, np.uint8), np.zeros(n2, np.uint8))
-    return nv, nf
 
 
 @njit(cache=True)
-def count_serial(P):
-    """:func:`count` on one thread: for small maps (no threads to start), and a kernel that
-    compiles in a fraction of the parallel one's time (the first extraction after install)."""
-    n0, n1, n2 = P.shape
-    nv = np.zeros(n0 + 1, np.int64)
-    nf = np.zeros(n0 + 1, np.int64)
-    mv = np.zeros(n2, np.uint8)
-    mf = np.zeros(n2, np.uint8)
-    for a in range(1, n0):
-        nv[a], nf[a] = _count_plane(P, a, mv, mf)
-    return nv, nf
+def count_serial(P, nv, nf, masks):
+    """:func:`count` on one thread, ``masks`` (2, n2) uint8 scratch: for small maps (no threads
+    to start), and a kernel that compiles in a fraction of the parallel one's time (the first
+    extraction after install)."""
+    for a in range(1, P.shape[0]):
+        nv[a], nf[a] = _count_plane(P, a, masks[0], masks[1])
 
 
 # ---------------------------------------------------------------------------------------------
 # pass 2: vertices and faces
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _plane_vertices(P, a, start, ids, mask, write, bg, needs, origin, M, offset,
+def _plane_vertices(P, a, start, ids, mask, words, write, bg, needs, origin, M, offset,
                     vertices, lattice, complex_):
     """Number the used lattice points of plane a from ``start`` in (b, c) order into ``ids``
     (index b * n2 + c); when ``write``, also fill their vertex rows. ``mask`` is uint8 scratch
-    whose length is a multiple of 8 and > n2 (scanned 8 points at a time)."""
+    whose length is a multiple of 8 and > n2, scanned 8 points at a time through ``words``, its
+    uint64 view."""
     n0, n1, n2 = P.shape
-    words = mask.view(np.uint64)
     n = start
     for b in range(1, n1):
         _vertex_mask(P, a, b, mask)
@@ -304,43 +297,46 @@ def emit(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks,
     planes, so each plane's vertex numbers are computed about once. Parallel over the runs;
     :func:`emit_run` with ``nchunks=1, ch=0`` is the same on one thread (same output).
     """
+    n0, n1, n2 = P.shape
     for ch in prange(nchunks):  # an int64 run number (prange's is unsigned): one emit_run
+        mask = np.zeros(8 * (n2 // 8 + 1), np.uint8)
         emit_run(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, np.int64(ch),
-                 vertices, lattice, complex_, faces, labels)
+                 vertices, lattice, complex_, faces, labels, np.empty((2, n1 * n2), np.int32),
+                 mask, mask.view(np.uint64))
 
 
 @njit(cache=True)
 def emit_run(P, bg, voff, qoff, origin, M, offset, flip, needs, nchunks, ch,
-             vertices, lattice, complex_, faces, labels):
+             vertices, lattice, complex_, faces, labels, ids, mask, words):
     """Vertices and faces of run ``ch`` of :func:`emit`: planes a0 .. a1 - 1. Called from
     Python with ``nchunks=1, ch=0`` it is :func:`emit` on one thread, for small maps (no
-    threads to start; and one kernel fewer to compile for the first extraction after install)."""
+    threads to start; and one kernel fewer to compile for the first extraction after install).
+    Scratch: ``ids`` (2, n1 * n2) int32, ``mask`` zeros (8 * (n2 // 8 + 1),) uint8 and
+    ``words``, its uint64 view."""
     n0, n1, n2 = P.shape
     a0 = 1 + ch * (n0 - 1) // nchunks
     a1 = 1 + (ch + 1) * (n0 - 1) // nchunks
     if a0 >= a1:
         return
-    cur = np.empty(n1 * n2, np.int32)
-    nxt = np.empty(n1 * n2, np.int32)
-    mask = np.zeros(8 * (n2 // 8 + 1), np.uint8)
+    cur = ids[0]
+    nxt = ids[1]
     write = a0 < a1  # True; a runtime bool, so numba compiles one _plane_vertices
-    _plane_vertices(P, a0, voff[a0], cur, mask, write, bg, needs, origin, M, offset,
+    _plane_vertices(P, a0, voff[a0], cur, mask, words, write, bg, needs, origin, M, offset,
                     vertices, lattice, complex_)
     for a in range(a0, a1):
         if a + 1 < n0:
-            _plane_vertices(P, a + 1, voff[a + 1], nxt, mask, a + 1 < a1, bg, needs, origin,
+            _plane_vertices(P, a + 1, voff[a + 1], nxt, mask, words, a + 1 < a1, bg, needs, origin,
                             M, offset, vertices, lattice, complex_)
-        _plane_faces(P, a, qoff[a], cur, nxt, mask, bg, flip, faces, labels)
+        _plane_faces(P, a, qoff[a], cur, nxt, mask, words, bg, flip, faces, labels)
         cur, nxt = nxt, cur
 
 
 @njit(cache=True)
-def _plane_faces(P, a, t, ida, idb, mask, bg, flip, faces, labels):
+def _plane_faces(P, a, t, ida, idb, mask, words, bg, flip, faces, labels):
     """The quads owned by plane a, from quad number t, in the same order as :func:`count`;
     ``ida``/``idb``: vertex numbers of lattice planes a and a + 1; ``mask``: as in
-    :func:`_plane_vertices`."""
+    :func:`_plane_vertices`, ``words`` its uint64 view."""
     n0, n1, n2 = P.shape
-    words = mask.view(np.uint64)
     for b in range(1, n1):
         _face_mask(P, a, b, mask)
         r01 = P[a - 1, b]
@@ -461,33 +457,27 @@ def _touches_complex(faces, complex_, q):
 
 
 @njit(cache=True)
-def splits(P, bg, lattice, offset, faces, labels, complex_, cycle, joinable):
-    """All split rows, int32 (S, 4): (face, side, corner, copy) with copy >= 1, meaning: in the
-    shell of label ``labels[face, side]``, corner ``corner`` of triangle ``face`` uses vertex copy
-    ``copy`` of ``faces[face, corner]``. Ordered by quad, then corner (serial: cheap, since only
-    quads touching a complex vertex do any work)."""
-    nq = faces.shape[0] // 2
-    empty = np.zeros((0, 4), np.int32)
-    n = np.int64(0)  # not a literal 0: one compiled _quad_splits for both loops
-    for q in range(nq):
-        if _touches_complex(faces, complex_, q):
-            n = _quad_splits(P, bg, lattice, offset, faces, labels, complex_, cycle, joinable,
-                             q, empty, n)
-    out = np.empty((n, 4), np.int32)
+def splits(P, bg, lattice, offset, faces, labels, complex_, cycle, joinable, out):
+    """The number S of split rows, and the rows into ``out`` int32 (S, 4) unless it is empty
+    (call with a (0, 4) array to count, then with one of S rows to fill): (face, side, corner,
+    copy) with copy >= 1, meaning: in the shell of label ``labels[face, side]``, corner
+    ``corner`` of triangle ``face`` uses vertex copy ``copy`` of ``faces[face, corner]``.
+    Ordered by quad, then corner (serial: cheap, since only quads touching a complex vertex do
+    any work)."""
     n = np.int64(0)
-    for q in range(nq):
+    for q in range(faces.shape[0] // 2):
         if _touches_complex(faces, complex_, q):
             n = _quad_splits(P, bg, lattice, offset, faces, labels, complex_, cycle, joinable,
                              q, out, n)
-    return out
+    return n
 
 
 @njit(cache=True)
-def voxel_counts(faces, labels, lattice, flip, nbins):
-    """Voxels of each label value (int64 (nbins,)), from the surface alone: by the divergence
-    theorem with the field (x, 0, 0), a closed voxel surface encloses the sum over its x-faces
-    of (plane index x outward normal sign) voxels. Exact integers."""
-    out = np.zeros(nbins, np.int64)
+def voxel_counts(faces, labels, lattice, flip, out):
+    """Voxels of each label value added into ``out`` (int64, one bin per value), from the
+    surface alone: by the divergence theorem with the field (x, 0, 0), a closed voxel surface
+    encloses the sum over its x-faces of (plane index x outward normal sign) voxels. Exact
+    integers."""
     for q in range(faces.shape[0] // 2):
         v0 = faces[2 * q, 0]
         v1 = faces[2 * q, 1]
@@ -503,4 +493,3 @@ def voxel_counts(faces, labels, lattice, flip, nbins):
         x = np.int64(lattice[v0, 0])
         out[labels[2 * q, 0]] += s * x
         out[labels[2 * q, 1]] -= s * x
-    return out

@@ -90,7 +90,8 @@ def label_surfaces(volume_or_array: Union[Volume, np.ndarray],
     flip = int(np.linalg.det(M) < 0)
     vertices, faces, face_labels, lattice, splits = _surface(P, bg, lo, origin, M, flip)
     report(progress, 0.9, "counting voxels")
-    counts = K.voxel_counts(faces, face_labels, lattice, flip, top + 1)
+    counts = np.zeros(top + 1, np.int64)
+    K.voxel_counts(faces, face_labels, lattice, flip, counts)
     lattice = np.ascontiguousarray(lattice[:, np.argsort(axes)])  # back to the volume's (i, j, k)
     present = [int(v) for v in np.flatnonzero(counts > 0) if v != bg]
     missing = [v for v in (wanted or []) if v not in set(present)]
@@ -117,7 +118,9 @@ def _crop(data: np.ndarray, bg: int, wanted: Optional[List[int]]):
     else:
         select[[v for v in wanted if v <= top]] = 1
         top = max([bg] + [v for v in wanted if v <= top])
-    box = K.bounding_box(data, min(bg, np.iinfo(data.dtype).max), select, use_select)
+    box = np.empty(6, np.int64)
+    K.bounding_box(data, min(bg, np.iinfo(data.dtype).max), select, use_select,
+                   np.empty((data.shape[0], 4), np.int64), box)
     dtype = np.uint8 if top <= 255 else np.uint16
     if box[0] > box[1]:
         return np.full((3, 3, 3), bg, dtype), np.zeros(3, np.int64), top
@@ -132,7 +135,11 @@ def _surface(P, bg, lo, origin, M, flip):
     """The kernels' three passes over ``P``: count, emit, split. Returns vertices, faces,
     face_labels, lattice (in P's axis order) and splits (ordered by face)."""
     parallel = P.size >= PARALLEL_MIN_VOXELS
-    nv, nq = K.count(P) if parallel else K.count_serial(P)
+    nv, nq = np.zeros(P.shape[0] + 1, np.int64), np.zeros(P.shape[0] + 1, np.int64)
+    if parallel:
+        K.count(P, nv, nq)
+    else:
+        K.count_serial(P, nv, nq, np.zeros((2, P.shape[2]), np.uint8))
     voff = np.cumsum(nv) - nv
     qoff = np.cumsum(nq) - nq
     n, q = int(nv.sum()), int(nq.sum())
@@ -148,9 +155,14 @@ def _surface(P, bg, lo, origin, M, flip):
         K.emit(P, P.dtype.type(bg), voff, qoff, origin, M, offset, flip, needs, nchunks,
                vertices, lattice, complex_, faces, face_labels)
     else:  # one run of planes on this thread
+        mask = np.zeros(8 * (P.shape[2] // 8 + 1), np.uint8)
         K.emit_run(P, P.dtype.type(bg), voff, qoff, origin, M, offset, flip, needs, 1, 0,
-                   vertices, lattice, complex_, faces, face_labels)
-    splits = K.splits(P, bg, lattice, offset, faces, face_labels, complex_, cycle, joinable)
+                   vertices, lattice, complex_, faces, face_labels,
+                   np.empty((2, P.shape[1] * P.shape[2]), np.int32), mask, mask.view(np.uint64))
+    args = (P, bg, lattice, offset, faces, face_labels, complex_, cycle, joinable)
+    splits = np.empty((K.splits(*args, np.zeros((0, 4), np.int32)), 4), np.int32)  # count, fill
+    if len(splits):
+        K.splits(*args, splits)
     splits = splits[np.argsort(splits[:, 0], kind="stable")]
     return vertices, faces, face_labels, lattice, splits
 

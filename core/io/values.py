@@ -89,9 +89,10 @@ def _count(a: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
 
 def _table(pieces: Iterator[np.ndarray], offset: int, bins: int) -> np.ndarray:
     """``counts[v - offset]`` (bins,) int64 over every piece, two pieces at a time."""
-    from ._values_kernels import add_counts
+    from ._values_kernels import SPLIT_BINS, add_counts
 
-    tables = [np.zeros(bins, np.int64) for _ in range(2)]
+    rows = 4 if bins <= SPLIT_BINS else 1
+    tables = [np.zeros((rows, bins), np.int64) for _ in range(2)]
     with ThreadPoolExecutor(2) as pool:
         pending = []
         for i, flat in enumerate(pieces):
@@ -100,7 +101,7 @@ def _table(pieces: Iterator[np.ndarray], offset: int, bins: int) -> np.ndarray:
             pending.append(pool.submit(add_counts, flat, np.int64(offset), tables[i % 2]))
         for p in pending:
             p.result()
-    return tables[0] + tables[1]
+    return tables[0].sum(axis=0) + tables[1].sum(axis=0)
 
 
 def flat_views(a: np.ndarray, chunk: int = CHUNK) -> Iterator[np.ndarray]:

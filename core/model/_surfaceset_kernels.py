@@ -6,44 +6,43 @@ from numba import njit
 
 
 @njit(cache=True)
-def group_faces(face_labels, index, nlabels):
-    """Faces of each label: ``(order, starts)`` with ``order`` int64 (2M,) entries ``2 f + side``
-    grouped by ``index[face_labels[f, side]]`` (-1: skip), faces ascending within a group."""
+def group_faces(face_labels, index, at, order):
+    """Faces of each label as entries ``2 f + side`` grouped by ``index[face_labels[f, side]]``
+    (-1: skip), faces ascending within a group. Two calls (the arrays come from the caller: a
+    kernel that allocates none compiles faster, the first run after install): with ``order``
+    empty, ``at`` (G + 1,) int64 zeros becomes the groups' starts; then with ``order`` int64
+    (starts[-1],) and ``at`` a copy of ``starts[:-1]``, ``order`` is filled."""
     m = face_labels.shape[0]
-    counts = np.zeros(nlabels + 1, np.int64)
+    if order.size == 0:
+        for f in range(m):
+            for s in range(2):
+                g = index[face_labels[f, s]]
+                if g >= 0:
+                    at[g + 1] += 1
+        for g in range(at.size - 1):  # prefix sums in place (np.cumsum costs a compile of its own)
+            at[g + 1] += at[g]
+        return
     for f in range(m):
         for s in range(2):
             g = index[face_labels[f, s]]
             if g >= 0:
-                counts[g + 1] += 1
-    for g in range(nlabels):  # prefix sums in place (np.cumsum costs a compile of its own)
-        counts[g + 1] += counts[g]
-    starts = counts
-    fill = starts[:-1].copy()
-    order = np.empty(starts[-1], np.int64)
-    for f in range(m):
-        for s in range(2):
-            g = index[face_labels[f, s]]
-            if g >= 0:
-                order[fill[g]] = 2 * f + s
-                fill[g] += 1
-    return order, starts
+                order[at[g]] = 2 * f + s
+                at[g] += 1
 
 
 @njit(cache=True)
-def shell(faces, entries, split_rows, split_copy, mark):
+def shell(faces, entries, split_rows, split_copy, mark, out, ids):
     """One label's shell from its entries ``2 f + side`` (side 1: reverse the triangle).
 
     ``split_rows`` int32 (S, 4) are the split rows of this label only, ordered by face (as
     ``entries``); ``split_copy`` int64 (S,) numbers the distinct (vertex, copy) pairs of the rows
     0, 1, ...: copy vertex ``split_copy[r]`` is appended after the shared vertices.
     ``mark`` is int64 scratch with one entry per SurfaceSet vertex, all -1 on entry and on return.
-    Returns ``(shell_faces int32 (m, 3), vertex_ids int64 (n0,))``: the shared vertices used, in
-    order of first use; copy vertices get indices n0 + split_copy.
+    Fills ``out`` int32 (m, 3), the shell's faces, and ``ids[:n0]`` (``ids`` int64 (3 m,)): the
+    shared vertices used, in order of first use; copy vertices get indices n0 + split_copy.
+    Returns n0.
     """
     m = entries.size
-    out = np.empty((m, 3), np.int32)
-    ids = np.empty(3 * m, np.int64)
     nv = 0
     r = 0
     nrows = split_rows.shape[0]
@@ -75,4 +74,4 @@ def shell(faces, entries, split_rows, split_copy, mark):
                 out[i, k] = nv - 1 - out[i, k]
     for u in range(nv):
         mark[ids[u]] = -1
-    return out, ids[:nv].copy()
+    return nv

@@ -163,7 +163,7 @@ class SurfaceSet:
         index = np.full(max(max(values), self.background, int(self.face_labels.max())) + 1,
                         -1, np.int64)
         index[np.asarray(values)] = np.arange(len(values))
-        order, starts = K.group_faces(self.face_labels, index, len(values))
+        order, starts = self._grouped_faces(index, len(values))
         split_label = self.face_labels[self.splits[:, 0], self.splits[:, 1]] if len(self.splits) \
             else np.zeros(0, np.int32)
         mark = np.full(self.n_vertices, -1, np.int64)
@@ -174,15 +174,27 @@ class SurfaceSet:
             # distinct (vertex, copy) pairs; a lattice corner has at most 4 fans, so copy < 16
             keys = self.faces[rows[:, 0], rows[:, 2]].astype(np.int64) * 16 + rows[:, 3]
             ukeys, copy_index = np.unique(keys, return_inverse=True)
-            faces, ids = K.shell(self.faces, order[starts[g]:starts[g + 1]], rows,
-                                 copy_index.astype(np.int64).reshape(-1), mark)
-            ids = np.concatenate([ids, ukeys // 16])
+            entries = order[starts[g]:starts[g + 1]]
+            faces, ids = np.empty((entries.size, 3), np.int32), np.empty(3 * entries.size, np.int64)
+            n0 = K.shell(self.faces, entries, rows, copy_index.astype(np.int64).reshape(-1), mark,
+                         faces, ids)
+            ids = np.concatenate([ids[:n0], ukeys // 16])
             info = self.labels.get(value) or LabelInfo(value, f"label {value}")
             out.append(Mesh(self.vertices[ids], faces, name=info.name,
                             value=self.shell_values.get(value, value),
                             color=tuple(info.color), space=self.space,
                             meta={"vertex_ids": ids, "copies": int(ukeys.size)}))
         return out
+
+    def _grouped_faces(self, index: np.ndarray, groups: int):
+        """``(order, starts)``: the entries ``2 f + side`` of each group's faces
+        (:func:`._surfaceset_kernels.group_faces`), group g's at ``order[starts[g]:starts[g + 1]]``."""
+        starts = np.zeros(groups + 1, np.int64)
+        K.group_faces(self.face_labels, index, starts, np.empty(0, np.int64))
+        order = np.empty(starts[-1], np.int64)
+        if order.size:
+            K.group_faces(self.face_labels, index, starts[:-1].copy(), order)
+        return order, starts
 
     def interfaces(self) -> List[Tuple[int, int, int]]:
         """Pairs of touching labels ``(a, b, triangles)`` with a < b (background excluded)."""

@@ -45,10 +45,10 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     c = constraint or Constraint()
     kind, center, frame, frame_inv, radius, start = c.arrays(v)
     boxed, capped = kind != 0, radius < np.inf
-    bufs = s.work_buffers(dt, 4 if boxed or capped else 2, ring.n_columns)
+    bufs = s.work_buffers(dt, 2 + boxed + capped, ring.n_columns)  # memory: only those used
     a, b = bufs[:2]
     box_c = bufs[2] if boxed else None  # None: numba compiles the step out of the pass
-    cap_s = bufs[3] if capped else None
+    cap_s = bufs[-1] if capped else None
     to_frame, metric = (frame, frame_inv) if boxed else (EYE, EYE)
     _k.to_columns(v, to_frame, a)
     if boxed:

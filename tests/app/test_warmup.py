@@ -99,14 +99,14 @@ def test_a_kernel_another_lane_claimed_runs_as_python_with_the_same_result(tmp_p
     from anatomesh.core.io._values_kernels import add_counts
 
     flat = np.array([3, 1, 3, 2, 3, 9, 1], np.uint64)  # a type no code path compiles it for
-    counts = np.zeros(9, np.int64)
+    counts = np.zeros((4, 9), np.int64)  # four interleaved histograms
     before = list(add_counts.signatures)
     other_lane = warmup._claim(tmp_path, add_counts.py_func, warmup._types(add_counts, (flat, 1, counts)))
     assert other_lane
     with warmup.sharing_kernels(tmp_path), warmup.counting_compiles() as compiled:
         add_counts(flat, 1, counts)
     assert compiled == [] and add_counts.signatures == before  # ran as Python, compiled nothing
-    assert counts.tolist() == np.bincount(flat.astype(np.int64) - 1, minlength=9).tolist()
+    assert counts.sum(0).tolist() == np.bincount(flat.astype(np.int64) - 1, minlength=9).tolist()
     assert Dispatcher._compile_for_args is _ORIGINAL  # numba is as it was after the block
 
 
@@ -114,10 +114,10 @@ def test_a_kernel_nobody_claimed_is_claimed_and_compiled(tmp_path):
     from anatomesh.core.io._values_kernels import add_counts
 
     flat = np.array([5, 4, 4], np.int8)  # int8: no code path compiles it for this type either
-    counts = np.zeros(2, np.int64)
+    counts = np.zeros((1, 2), np.int64)  # one histogram
     with warmup.sharing_kernels(tmp_path):
         add_counts(flat, 4, counts)
-    assert counts.tolist() == [2, 1]
+    assert counts.tolist() == [[2, 1]]
     # compiled (or loaded from numba's cache on a later test run), not run as Python
     assert any(sig.args[0].dtype.name == "int8" for sig in add_counts.nopython_signatures)
     assert not warmup._claim(tmp_path, add_counts.py_func, warmup._types(add_counts, (flat, 4, counts)))
