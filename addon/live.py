@@ -28,7 +28,7 @@ from typing import Dict, List, Optional, Tuple
 import bpy
 import numpy as np
 
-from . import bridge, scene
+from . import bridge, scene, warmup
 from .reassemble import surface_set_from_objects
 
 LATTICE_ATTRIBUTE = "anatomesh_lattice"
@@ -59,6 +59,8 @@ class LiveScan:
 _CACHE: Dict[str, LiveScan] = {}
 #: set while an operator writes several settings at once (one re-smooth at the end)
 _SUSPENDED = False
+#: scan collections waiting for the first run's smoothing kernels (:func:`smooth_when_ready`)
+_PENDING: set = set()
 
 
 def remember(collection: bpy.types.Collection, scan: LiveScan) -> None:
@@ -136,6 +138,28 @@ def smooth_collection(collection: bpy.types.Collection) -> float:
     return seconds
 
 
+def smooth_when_ready(collection: bpy.types.Collection) -> bool:
+    """Smooth ``collection`` now, or — first run, its kernels still compiling in the background —
+    once they are ready, with the settings it has then (one pending smoothing per collection,
+    however often a slider moves meanwhile), so Blender never freezes compiling. Returns True
+    when it smoothed now."""
+    if warmup.ready("smoothing"):
+        smooth_collection(collection)
+        return True
+    name = collection.name
+    if name not in _PENDING:
+        _PENDING.add(name)
+
+        def smooth_later():
+            _PENDING.discard(name)
+            coll = bpy.data.collections.get(name)
+            if coll is not None:
+                smooth_collection(coll)
+
+        warmup.when_ready("smoothing", smooth_later)
+    return False
+
+
 def apply(collection: bpy.types.Collection) -> None:
     """Make the current (smoothed) positions the new unsmoothed copy; smoothing back to none."""
     for o in scene.surface_objects(collection):
@@ -165,6 +189,11 @@ def on_scan_settings_changed(settings, context) -> None:
     if _SUSPENDED or not settings.live:
         return
     coll = settings.id_data
+    if not warmup.ready("smoothing"):  # first run: never compile in the UI
+        smooth_when_ready(coll)
+        _status(context, f"Anatomesh: '{coll.name}' is smoothed with these settings once its kernels "
+                         f"are compiled (first run, {int(100 * warmup.STATE['fraction'])}%)")
+        return
     try:
         seconds = smooth_collection(coll)
         _status(context, f"Anatomesh: smoothed '{coll.name}' in {seconds * 1000:.0f} ms")

@@ -37,6 +37,8 @@ PACKAGE = __package__.rpartition(".")[0]
 ROOT = Path(__file__).parent.parent  # not resolved: the extension folder may be a link
 #: the steps of :mod:`..app.warmup`, in the order they run
 STEPS = DEFAULT_STEPS + EXTRA_STEPS
+#: the steps the decimation and export operators, and the print check and fixes, wait for
+DECIMATION_STEP, FIXES_STEP = "decimation and levels of detail", "print checks and fixes"
 
 #: what the panel shows: running, fraction done, current step, steps finished, error, seconds
 STATE: Dict = {"running": False, "fraction": 0.0, "step": "", "done": [], "error": "",

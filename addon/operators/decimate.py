@@ -22,7 +22,7 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 
-from .. import scene
+from .. import scene, warmup
 from ..common import ProgressReporter, active_scan, guarded
 from ..decimation import clear_preview, decimate_collection, preview_ratios, set_preview
 from ..ui.props import TARGET_ITEMS
@@ -81,6 +81,8 @@ class ANATOMESH_OT_decimate_preview(_TargetProps, Operator):
         if self.clear:
             self.report({"INFO"}, f"Removed the preview from {clear_preview(objs)} surface(s)")
             return {"FINISHED"}
+        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: again when its kernels are compiled
+            return {"FINISHED"}
         with ProgressReporter(context, "decimation preview"):
             set_preview(objs, preview_ratios(objs, self.target, self.ratio, self.faces,
                                                self.max_error))
@@ -101,6 +103,8 @@ class ANATOMESH_OT_decimate_apply(_TargetProps, Operator):
         import time
 
         coll = _scan(self, context)
+        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: again when its kernels are compiled
+            return {"FINISHED"}
         t0 = time.perf_counter()
         before = sum(len(o.data.polygons) for o in scene.surface_objects(coll))
         with ProgressReporter(context, "decimating") as progress:

@@ -14,7 +14,7 @@ import bmesh
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 from bpy.types import Operator
 
-from .. import edit_tools
+from .. import edit_tools, warmup
 from ..common import guarded
 
 
@@ -103,6 +103,8 @@ class ANATOMESH_OT_edit_relax(_EditBase, Operator):
 
     @guarded
     def execute(self, context):
+        if warmup.defer(self, "smoothing"):  # first run: again when its kernels are compiled
+            return {"FINISHED"}
         bm = bmesh.from_edit_mesh(context.active_object.data)
         r = edit_tools.relax_selected(bm, self.max_deviation, self.iterations, _matrix(context))
         return self.done(context, f"{r['moved']} vertices relaxed, at most {r['max_moved_mm']:g} mm")

@@ -9,7 +9,7 @@ from bpy.props import (BoolProperty, EnumProperty, StringProperty)
 from ...core.export.common import file_stem, refuse_overwrite
 from ...core.export.threemf import write_3mf
 from ...core.model.errors import AnatomeshError
-from .. import scene
+from .. import scene, warmup
 from ..common import abspath, active_scan, guarded
 from ..exporting import export_gltf, export_meshes, object_meshes
 from ..ui import props
@@ -37,6 +37,8 @@ class ANATOMESH_OT_export(bpy.types.Operator):
         objs, stem = self._objects(context)
         if not objs:
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
+        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: the writers' kernels compile there
+            return {"FINISHED"}
         os.makedirs(folder, exist_ok=True)
         if self.format == "3MF":
             path = os.path.join(folder, file_stem(stem) + ".3mf")

@@ -25,7 +25,6 @@ from ..printing import print_objects
 
 
 #: the background warm-up step compiling the print fixes' kernels
-FIXES_STEP = "print checks and fixes"
 
 
 def _profile(context):
@@ -122,7 +121,7 @@ class ANATOMESH_OT_print_clearance(Operator):
 
         objs = print_objects(context, True) if self.selected_only else \
             scene.surface_objects(_scan_or_fail(context))
-        if warmup.defer(self, FIXES_STEP):
+        if warmup.defer(self, warmup.FIXES_STEP):
             return {"FINISHED"}
         entry = print_tools.separate_objects(objs, self.clearance)
         self.report({"INFO"}, f"Clearance {self.clearance:g} mm: {entry['moved_vertices']:,} vertices moved, "
@@ -150,7 +149,7 @@ class ANATOMESH_OT_print_hollow(Operator):
         if not objs:
             self.report({"WARNING"}, "Hollow: select the surfaces to hollow")
             return {"CANCELLED"}
-        if warmup.defer(self, FIXES_STEP):
+        if warmup.defer(self, warmup.FIXES_STEP):
             return {"FINISHED"}
         profile, _ = _profile(context)
         lines = []
@@ -181,7 +180,7 @@ class ANATOMESH_OT_print_connectors(Operator):
             return {"CANCELLED"}
         a = active if active in objs else objs[0]
         b = objs[1] if a is objs[0] else objs[0]
-        if warmup.defer(self, FIXES_STEP):
+        if warmup.defer(self, warmup.FIXES_STEP):
             return {"FINISHED"}
         profile, wall = _profile(context)
         e = print_tools.connect_objects(a, b, profile, wall)

@@ -20,7 +20,7 @@ from __future__ import annotations
 from bpy.props import (IntProperty)
 from bpy.types import Operator
 
-from .. import bridge
+from .. import bridge, warmup
 from ..common import ProgressReporter, guarded
 from ..printing import frame_location, print_objects, problems_of
 
@@ -43,6 +43,8 @@ class ANATOMESH_OT_print_check(Operator):
             self.report({"WARNING"}, "No Anatomesh surfaces to check" +
                         (" among the selected objects" if s.selected_only else ""))
             return {"CANCELLED"}
+        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when its kernels are compiled
+            return {"FINISHED"}
         meshes = []
         for o in objs:
             v, f = bridge.world_arrays(o, context.evaluated_depsgraph_get())

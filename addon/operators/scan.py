@@ -41,19 +41,8 @@ def smooth_new_scan(context, coll, method: str = "SETTINGS"):
     live.set_scan_settings(coll, **values)
     if values["smooth_method"] == "NONE":
         return coll
-    if not warmup.ready("smoothing"):
-        # speed (first run): the surfaces are usable now, smoothed once its kernels are ready
-        name = coll.name
-
-        def smooth_later():
-            c = bpy.data.collections.get(name)
-            if c is not None:
-                live.smooth_collection(c)
-
-        warmup.when_ready("smoothing", smooth_later)
-    else:
-        with ProgressReporter(context, "smoothing"):
-            live.smooth_collection(coll)
+    with ProgressReporter(context, "smoothing"):  # first run: later, once its kernels are ready
+        live.smooth_when_ready(coll)
     return coll
 
 

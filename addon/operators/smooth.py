@@ -6,7 +6,7 @@ import bpy
 from bpy.props import BoolProperty, StringProperty
 
 from ...core.model.errors import AnatomeshError
-from .. import live
+from .. import live, warmup
 from ..common import active_scan, guarded
 from ..ui import props
 
@@ -36,6 +36,8 @@ class ANATOMESH_OT_smooth(bpy.types.Operator):
         if coll is None or not coll.anatomesh.is_scan:
             raise AnatomeshError("no scan collection to smooth: extract surfaces first, or pass "
                                  "collection= with its name")
+        if warmup.defer(self, "smoothing"):  # first run: again when its kernels are compiled
+            return {"FINISHED"}
         live.set_scan_settings(coll, **{name: getattr(self, name) for name in props.smoothing_properties()})
         seconds = live.smooth_collection(coll)
         if self.apply:

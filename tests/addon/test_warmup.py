@@ -84,3 +84,57 @@ def test_large_label_maps_wait_for_their_parallel_passes(warmup, addon):
     assert warmup.extraction_step(volume((512, 512, 200))) == "large label maps"
     assert warmup.extraction_step(volume((512, 512, 200), labels=False)) == "isosurfaces"
     assert warmup.STEPS.index("large label maps") > warmup.STEPS.index("label surfaces")
+
+
+def test_smoothing_before_its_kernels_are_compiled_waits_and_never_runs_twice(warmup, addon,
+                                                                            empty_scene):
+    """First run, the smoothing step still compiling: a new scan, slider moves and the Smooth
+    operator wait (nothing compiles in the UI); once the step is ready the scan is smoothed once
+    per collection with the latest settings, then the deferred operator runs with its own."""
+    import numpy as np
+
+    live = sys.modules[addon.__name__ + ".addon.live"]
+    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    warmup.STATE.update(running=True, done=["reading", "label surfaces", "isosurfaces"])
+    assert bpy.ops.anatomesh.import_scan(filepath=str(SAMPLE / "example_seg.nii.gz"),
+                                         extract=True) == {"FINISHED"}
+    coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
+    obj = coll.all_objects[0]
+    extracted = bridge.positions(obj.data).copy()
+    for n in (10, 20, 30):  # a slider dragged while compiling
+        coll.anatomesh.smooth_iterations = n
+    assert bpy.ops.anatomesh.smooth(collection=coll.name, smooth_iterations=12) == {"FINISHED"}
+    assert np.array_equal(bridge.positions(obj.data), extracted)  # not smoothed yet
+    waiting = [step for step, _ in warmup._WAITING]
+    assert waiting == ["smoothing", "smoothing"]  # one for the collection, one for the operator
+    warmup.STATE["done"].append("smoothing")
+    warmup._run_waiting()
+    assert not warmup._WAITING and coll.anatomesh.smooth_iterations == 12
+    smoothed = bridge.positions(obj.data).copy()
+    assert np.abs(smoothed - extracted).max() > 0.05  # mm: smoothed
+    warmup.STATE["running"] = False
+    live.smooth_collection(coll)  # the same settings again: the same positions
+    assert np.allclose(bridge.positions(obj.data), smoothed, atol=1e-5)
+
+
+def test_decimation_and_export_before_their_kernels_are_compiled_wait(warmup, empty_scene,
+                                                                      tmp_path):
+    """First run: Decimate and Export asked for while their step still compiles return at once
+    and run by themselves once it is ready (nothing compiles in the UI meanwhile)."""
+    empty_scene.anatomesh.smooth_method = "NONE"  # as extracted: decimated below
+    assert bpy.ops.anatomesh.import_scan(filepath=str(SAMPLE / "example_seg.nii.gz"),
+                                         extract=True) == {"FINISHED"}
+    coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
+    faces = sum(len(o.data.polygons) for o in coll.all_objects)
+    steps = list(warmup.STEPS)
+    warmup.STATE.update(running=True, done=steps[:steps.index(warmup.DECIMATION_STEP)])
+    out = tmp_path / "stl"
+    assert bpy.ops.anatomesh.decimate_apply(collection=coll.name, target="RATIO",
+                                            ratio=0.5) == {"FINISHED"}
+    assert bpy.ops.anatomesh.export(directory=str(out), format="STL",
+                                    collection=coll.name) == {"FINISHED"}
+    assert sum(len(o.data.polygons) for o in coll.all_objects) == faces and not out.exists()
+    warmup.STATE["done"].append(warmup.DECIMATION_STEP)
+    warmup._run_waiting()
+    assert sum(len(o.data.polygons) for o in coll.all_objects) < 0.6 * faces
+    assert len(list(out.glob("*.stl"))) == 41
