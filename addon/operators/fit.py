@@ -9,7 +9,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, FloatVectorProperty
 
-from .. import bridge, scene
+from .. import bridge, scene, warmup
 from ..common import ProgressReporter, guarded
 from ..printing import print_objects
 
@@ -37,6 +37,8 @@ class ANATOMESH_OT_print_fit(bpy.types.Operator):
         if not objs:
             self.report({"WARNING"}, "No Anatomesh surfaces to cut")
             return {"CANCELLED"}
+        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
+            return {"FINISHED"}
         depsgraph = context.evaluated_depsgraph_get()
         meshes = [Mesh(*bridge.world_arrays(o, depsgraph), name=o.name) for o in objs]
         with ProgressReporter(context, "cut to fit") as progress:

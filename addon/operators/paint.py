@@ -4,6 +4,7 @@ from __future__ import annotations
 from bpy.props import (EnumProperty, FloatProperty)
 from bpy.types import Operator
 
+from .. import warmup
 from ..common import guarded
 from ..paint import paint_mode, show_vertex_colors, target_objects
 
@@ -30,6 +31,8 @@ class ANATOMESH_OT_paint(Operator):
         if not objs:
             self.report({"WARNING"}, "No Anatomesh surfaces: select some or import a scan")
             return {"CANCELLED"}
+        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
+            return {"FINISHED"}
         paint_mode(objs, self.mode, min_wall=self.min_wall)
         show_vertex_colors(context)
         self.report({"INFO"}, f"Painted {self.mode.lower()} on {len(objs)} object(s)")

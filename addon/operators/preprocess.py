@@ -7,7 +7,7 @@ import time
 import bpy
 from bpy.props import FloatProperty, StringProperty
 
-from .. import live_iso, preprocessing
+from .. import live_iso, preprocessing, warmup
 from ..common import ProgressReporter, active_scan, guarded, load_volume
 from ..recipes import preprocess_to_recipe, recipe_from_scene
 from ..scan import frame_viewports
@@ -89,6 +89,8 @@ class ANATOMESH_OT_live_isovalue(bpy.types.Operator):
         vol = _volume(context)
         if vol.is_label_map:
             raise AnatomeshError("the live isovalue is for scalar scans; this is a label map")
+        if warmup.defer(self, "isosurfaces"):  # first run: again when the scans' kernels are compiled
+            return {"FINISHED"}
         p = context.scene.anatomesh_preprocess
         level = p.live_level if self.level != self.level else self.level  # NaN: the panel's
         coll = active_scan(context)

@@ -8,6 +8,7 @@ from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
 from ...core.export.common import file_stem
 from ...core.model.errors import AnatomeshError
+from .. import warmup
 from ..common import abspath, guarded
 from ..paint import show_vertex_colors
 from ..ui import props
@@ -37,6 +38,8 @@ class ANATOMESH_OT_export_web(bpy.types.Operator):
         objs = surface_objects_of(context, self.selection, self.collection)
         if not objs:
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
+        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
+            return {"FINISHED"}
         title = objs[0].users_collection[0].name if objs[0].users_collection else "surfaces"
         out = os.path.join(folder, file_stem(title) + "_web")
         summary = export_web(context, objs, out, title=title, levels=self.levels, overwrite=self.overwrite)
@@ -64,6 +67,8 @@ class ANATOMESH_OT_paint_margins(bpy.types.Operator):
         if target is None or target.type != "MESH":
             raise AnatomeshError("choose the target: make a surface object active (or pass target=)")
         objs = neighbours_of(target)
+        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
+            return {"FINISHED"}
         try:
             margins = check_margins([float(x) for x in self.margins.split(",") if x.strip()])
         except ValueError:
