@@ -59,7 +59,8 @@ class LiveScan:
 _CACHE: Dict[str, LiveScan] = {}
 #: set while an operator writes several settings at once (one re-smooth at the end)
 _SUSPENDED = False
-#: scan collections waiting for the first run's smoothing kernels (:func:`smooth_when_ready`)
+#: (scan collection, warm-up step) waiting for the first run's smoothing kernels
+#: (:func:`smooth_when_ready`)
 _PENDING: set = set()
 
 
@@ -138,26 +139,36 @@ def smooth_collection(collection: bpy.types.Collection) -> float:
     return seconds
 
 
-def smooth_when_ready(collection: bpy.types.Collection) -> bool:
+def smoothing_step(collection: bpy.types.Collection) -> str:
+    """The warm-up step whose kernels ``collection``'s next smoothing needs: "label smoothing"
+    for the first run of a label map's sessions (extracted organs), "smoothing" otherwise
+    (isosurfaces; a slider's later runs list the candidate pairs)."""
+    scan = live_scan(collection)
+    first = all(k not in scan.sessions or not scan.sessions[k].runs for k in range(len(scan.layers)))
+    labels = all(sset.lattice is not None for sset in scan.layers)
+    return "label smoothing" if first and labels else "smoothing"
+
+
+def smooth_when_ready(collection: bpy.types.Collection) -> Optional[float]:
     """Smooth ``collection`` now, or — first run, its kernels still compiling in the background —
-    once they are ready, with the settings it has then (one pending smoothing per collection,
-    however often a slider moves meanwhile), so Blender never freezes compiling. Returns True
-    when it smoothed now."""
-    if warmup.ready("smoothing"):
-        smooth_collection(collection)
-        return True
-    name = collection.name
-    if name not in _PENDING:
-        _PENDING.add(name)
+    once they are ready, with the settings it has then (one pending smoothing per collection and
+    step, however often a slider moves meanwhile), so Blender never freezes compiling. Returns
+    the driver's seconds when it smoothed now, else None."""
+    step = smoothing_step(collection)
+    if warmup.ready(step):
+        return smooth_collection(collection)
+    key = (collection.name, step)
+    if key not in _PENDING:
+        _PENDING.add(key)
 
-        def smooth_later():
-            _PENDING.discard(name)
-            coll = bpy.data.collections.get(name)
+        def smooth_later():  # now, or (a later run than planned) when that step is ready
+            _PENDING.discard(key)
+            coll = bpy.data.collections.get(key[0])
             if coll is not None:
-                smooth_collection(coll)
+                smooth_when_ready(coll)
 
-        warmup.when_ready("smoothing", smooth_later)
-    return False
+        warmup.when_ready(step, smooth_later)
+    return None
 
 
 def apply(collection: bpy.types.Collection) -> None:
@@ -189,14 +200,13 @@ def on_scan_settings_changed(settings, context) -> None:
     if _SUSPENDED or not settings.live:
         return
     coll = settings.id_data
-    if not warmup.ready("smoothing"):  # first run: never compile in the UI
-        smooth_when_ready(coll)
-        _status(context, f"Anatomesh: '{coll.name}' is smoothed with these settings once its kernels "
-                         f"are compiled (first run, {int(100 * warmup.STATE['fraction'])}%)")
-        return
     try:
-        seconds = smooth_collection(coll)
-        _status(context, f"Anatomesh: smoothed '{coll.name}' in {seconds * 1000:.0f} ms")
+        seconds = smooth_when_ready(coll)
+        if seconds is None:  # first run: smoothed once its kernels are compiled
+            _status(context, f"Anatomesh: '{coll.name}' is smoothed with these settings once its "
+                             f"kernels are compiled (first run, {int(100 * warmup.STATE['fraction'])}%)")
+        else:
+            _status(context, f"Anatomesh: smoothed '{coll.name}' in {seconds * 1000:.0f} ms")
     except Exception as exc:  # an update callback must never raise into the UI
         _status(context, f"Anatomesh: smoothing failed: {exc}")
         print(f"Anatomesh: smoothing {coll.name} failed: {exc}")

@@ -42,10 +42,11 @@ from typing import Callable, Dict, List, Optional
 import numpy as np
 
 #: what a first session needs first — reading, extraction of label maps and of scans (the
-#: add-on's first extraction waits for these), the default smoothing, the run's report and files
-#: — then the rest
-DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "large label maps", "smoothing",
-                 "files and report")
+#: add-on's first extraction waits for these), the first smoothing of a label map's surfaces
+#: (the add-on's smoothing of extracted organs waits for it), the default smoothing with its
+#: report, sliders and isosurfaces, the run's report and files — then the rest
+DEFAULT_STEPS = ("reading", "label surfaces", "isosurfaces", "large label maps", "label smoothing",
+                 "smoothing", "files and report")
 EXTRA_STEPS = ("more data types", "decimation and levels of detail", "print checks and fixes")
 
 #: processes sharing a first run's compiling (:func:`main`)
@@ -369,6 +370,27 @@ def _more_types(folder: Path) -> None:
                                       spacing=(1.0, 1.0, 1.0)), levels=[300.0, -400.0])
 
 
+def _label_smoothing(folder: Path) -> None:
+    """What the add-on's first smoothing of a label map's surfaces runs (a smoothing session's
+    first run with the default settings, thick and isotropic slices): extracted organs are
+    smoothed this early, the rest of :func:`_smoothing` compiles after."""
+    from ..core.extract.multilabel import label_surfaces
+    from ..core.smooth.session import SmoothingSession
+    from . import stages
+    from .recipe import Recipe
+
+    method, settings = stages.smoothing(Recipe())
+    for spacing in ((1.0, 1.0, 2.5), (1.0, 1.0, 1.0)):
+        s = label_surfaces(_label_map(np.uint8), affine=np.diag(list(spacing) + [1.0]))
+        session = SmoothingSession(s)
+        out = session.run(method, **settings)[0]
+    # the unfold and untangle rounds after an untangling that turned faces over (organs that
+    # touch, e.g. the sample's): a face turned over by swapping two of its corners
+    a, b = session.faces[0, :2]
+    out[[a, b]] = out[[b, a]]
+    session._unfold_untangled(out, session.boxes())
+
+
 def _smoothing(folder: Path) -> None:
     """The default smoothing (:func:`anatomesh.app.stages.smooth`) of label surfaces (thick
     slices: with the staircase pass; isotropic) and of an isosurface, the cached session the
@@ -425,6 +447,7 @@ _STEPS: Dict[str, Callable[[Path], None]] = {
     "label surfaces": _label_surfaces,
     "isosurfaces": _isosurfaces,
     "large label maps": _large_label_maps,
+    "label smoothing": _label_smoothing,
     "smoothing": _smoothing,
     "files and report": _files_and_report,
     "more data types": _more_types,

@@ -36,7 +36,7 @@ class ANATOMESH_OT_smooth(bpy.types.Operator):
         if coll is None or not coll.anatomesh.is_scan:
             raise AnatomeshError("no scan collection to smooth: extract surfaces first, or pass "
                                  "collection= with its name")
-        if warmup.defer(self, "smoothing"):  # first run: again when its kernels are compiled
+        if warmup.defer(self, live.smoothing_step(coll)):  # first run: again when compiled
             return {"FINISHED"}
         live.set_scan_settings(coll, **{name: getattr(self, name) for name in props.smoothing_properties()})
         seconds = live.smooth_collection(coll)

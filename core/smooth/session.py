@@ -99,6 +99,11 @@ class SmoothingSession:
         self._runs = 0
 
     @property
+    def runs(self) -> int:
+        """How often :meth:`run` ran (from the second run on, the candidate pairs are listed)."""
+        return self._runs
+
+    @property
     def has_lattice(self) -> bool:
         """Vertices come from a label map's lattice (else: independent surfaces)."""
         return self.surfaces.lattice is not None

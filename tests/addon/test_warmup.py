@@ -88,9 +88,10 @@ def test_large_label_maps_wait_for_their_parallel_passes(warmup, addon):
 
 def test_smoothing_before_its_kernels_are_compiled_waits_and_never_runs_twice(warmup, addon,
                                                                             empty_scene):
-    """First run, the smoothing step still compiling: a new scan, slider moves and the Smooth
-    operator wait (nothing compiles in the UI); once the step is ready the scan is smoothed once
-    per collection with the latest settings, then the deferred operator runs with its own."""
+    """First run, the smoothing steps still compiling: a new label map's organs, slider moves
+    and the Smooth operator wait (nothing compiles in the UI); the organs are smoothed once
+    "label smoothing" is ready (a session's first run), with the slider's latest value; the
+    operator, a second run (which lists the candidate pairs), once "smoothing" is."""
     import numpy as np
 
     live = sys.modules[addon.__name__ + ".addon.live"]
@@ -105,13 +106,19 @@ def test_smoothing_before_its_kernels_are_compiled_waits_and_never_runs_twice(wa
         coll.anatomesh.smooth_iterations = n
     assert bpy.ops.anatomesh.smooth(collection=coll.name, smooth_iterations=12) == {"FINISHED"}
     assert np.array_equal(bridge.positions(obj.data), extracted)  # not smoothed yet
-    waiting = [step for step, _ in warmup._WAITING]
-    assert waiting == ["smoothing", "smoothing"]  # one for the collection, one for the operator
+    # one for the collection (however often the slider moved), one for the operator
+    assert [step for step, _ in warmup._WAITING] == ["label smoothing", "label smoothing"]
+    warmup.STATE["done"].append("label smoothing")
+    warmup._run_waiting()
+    first = bridge.positions(obj.data).copy()
+    assert np.abs(first - extracted).max() > 0.05  # mm: smoothed, with 30 iterations
+    assert coll.anatomesh.smooth_iterations == 30
+    assert [step for step, _ in warmup._WAITING] == ["smoothing"]  # the operator: a second run
     warmup.STATE["done"].append("smoothing")
     warmup._run_waiting()
     assert not warmup._WAITING and coll.anatomesh.smooth_iterations == 12
     smoothed = bridge.positions(obj.data).copy()
-    assert np.abs(smoothed - extracted).max() > 0.05  # mm: smoothed
+    assert np.abs(smoothed - first).max() > 0.01  # 12 iterations now
     warmup.STATE["running"] = False
     live.smooth_collection(coll)  # the same settings again: the same positions
     assert np.allclose(bridge.positions(obj.data), smoothed, atol=1e-5)

@@ -143,24 +143,32 @@ def test_two_lanes_share_a_cold_first_run_and_the_first_extraction_compiles_noth
     assert "COMPILED []" in after.stdout and "SHELLS 0" not in after.stdout
 
 
-def test_after_its_steps_a_large_label_map_compiles_nothing(tmp_path):
+def test_after_their_steps_label_maps_extract_and_smooth_compiling_nothing(tmp_path):
     """The parallel passes of maps above PARALLEL_MIN_VOXELS have a step of their own (Blender
     used to compile them, frozen, on the first large map after a complete warm-up); the label
-    steps leave nothing to compile for the sample's extraction, small or large."""
+    steps leave nothing to compile for the sample's extraction, small or large, and "label
+    smoothing" nothing for the first smoothing of its surfaces (what Blender runs after
+    extracting them)."""
     cache = tmp_path / "numba-cache"
-    steps = "reading,label surfaces,large label maps"
+    steps = "reading,label surfaces,large label maps,label smoothing"
     warm = _run(["-m", "anatomesh.app.warmup", "--steps", steps, "--lanes", "1"], cache)
     assert warm.returncode == 0, warm.stderr
     assert _compiled(warm.stdout) >= 10
     code = ("from anatomesh.app.warmup import counting_compiles\n"
             "from anatomesh.core.io import load\n"
             "from anatomesh.core.extract import multilabel\n"
+            "from anatomesh.core.smooth.session import SmoothingSession\n"
+            "from anatomesh.app.stages import smoothing\n"
+            "from anatomesh.app.recipe import Recipe\n"
             f"vol = load({str(SAMPLE / 'example_seg.nii.gz')!r})\n"
             "with counting_compiles() as names:\n"
-            "    small = multilabel.label_surfaces(vol).shells()\n"
+            "    surfaces = multilabel.label_surfaces(vol)\n"
+            "    small = surfaces.shells()\n"
+            "    method, settings = smoothing(Recipe())\n"
+            "    moved = SmoothingSession(surfaces).run(method, **settings)[0] - surfaces.vertices\n"
             "    multilabel.PARALLEL_MIN_VOXELS = 0\n"
             "    large = multilabel.label_surfaces(vol).shells()\n"
-            "assert len(small) == len(large) == 41\n"
+            "assert len(small) == len(large) == 41 and abs(moved).max() > 0.05\n"
             "print('COMPILED', len(names), names)\n")
     out = _run(["-c", code], cache)
     assert out.returncode == 0, out.stderr
