@@ -384,8 +384,12 @@ def _label_smoothing(folder: Path) -> None:
         s = label_surfaces(_label_map(np.uint8), affine=np.diag(list(spacing) + [1.0]))
         session = SmoothingSession(s)
         out = session.run(method, **settings)[0]
-    # the unfold and untangle rounds after an untangling that turned faces over (organs that
-    # touch, e.g. the sample's): a face turned over by swapping two of its corners
+    _rounds_after_untangling(session, out)  # organs that touch, e.g. the sample's
+
+
+def _rounds_after_untangling(session, out: np.ndarray) -> None:
+    """The unfold and untangle rounds after an untangling that turned faces over, on a face
+    turned over by swapping two of its corners."""
     a, b = session.faces[0, :2]
     out[[a, b]] = out[[b, a]]
     session._unfold_untangled(out, session.boxes())
@@ -420,13 +424,9 @@ def _smoothing(folder: Path) -> None:
     # the add-on's "relax selected" edit tool: Laplacian passes with a gain per vertex
     smooth(s.vertices, s.faces, "laplacian", iterations=2, lam=0.5, fold_guard=True,
            constraint=Constraint(max_deviation=1.0), gain=np.ones(len(s.vertices)))
-    # the unfold and untangle rounds after an untangling that turned faces over (bone
-    # isosurfaces): a face turned over by swapping two of its corners
+    # the unfold and untangle rounds after an untangling that turned faces over (bone isosurfaces)
     session = SmoothingSession(SurfaceSet.from_meshes(iso, np.eye(4)))
-    out = session.run(method, **settings)[0]
-    a, b = session.faces[0, :2]
-    out[[a, b]] = out[[b, a]]
-    session._unfold_untangled(out, session.boxes())
+    _rounds_after_untangling(session, session.run(method, **settings)[0])
 
 
 def _decimation(folder: Path) -> None:

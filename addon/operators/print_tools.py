@@ -24,8 +24,6 @@ from ..common import ProgressReporter, active_scan, guarded, parse_list
 from ..printing import print_objects
 
 
-#: the background warm-up step compiling the print fixes' kernels
-
 
 def _profile(context):
     s = context.scene.anatomesh_print

@@ -1,7 +1,6 @@
 """Numba kernels for :class:`anatomesh.core.model.surfaceset.SurfaceSet` shell views (private)."""
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 
