@@ -175,9 +175,10 @@ class MeshStructure:
         return out
 
     def release_buffers(self) -> None:
-        """Drop the padded rings and working buffers of the smoothing passes (rebuilt on the
-        next call): a one-shot smoothing frees them before measuring."""
+        """Drop the padded rings, feature rings and working buffers of the smoothing passes
+        (rebuilt on the next call): a one-shot smoothing frees them after its filter."""
         self._padded.clear()
+        self._feature.clear()
         self._buffers.clear()
 
     def work_buffers(self, dtype=np.float64, count: int = 2,

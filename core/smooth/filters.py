@@ -26,7 +26,9 @@ after every pass), ``gain`` (per-vertex damping in [0, 1]), ``face_groups`` (a g
 e.g. the label pair of a SurfaceSet face: vertices on curves where groups meet — junctions of 3+
 labels, open boundaries, non-manifold edges — smooth only along the curve, curve ends and corners
 stay fixed), ``structure`` (a cached :class:`~anatomesh.core.geometry.neighbors.MeshStructure`),
-``progress``. Bade, Haase & Preim 2006 ("Comparison of fundamental mesh smoothing algorithms for
+``progress``, and for :func:`taubin` and :func:`laplacian` ``keep_buffers`` (False: the rings and
+working buffers the passes cache in the structure are freed as soon as they are used, one-shot
+runs' memory). Bade, Haase & Preim 2006 ("Comparison of fundamental mesh smoothing algorithms for
 medical surface models") recommend λ 0.5–0.7 with about 20 iterations (Taubin or HC) for compact
 and flat organs.
 """
@@ -49,7 +51,7 @@ from ..model.progress import Progress, report
 def laplacian(vertices, faces, *, iterations: int = 10, lam: float = 0.5, weights: str = "uniform",
               rings: int = 1, constraint: Optional[Constraint] = None, gain=None, face_groups=None,
               structure: Optional[MeshStructure] = None, progress: Optional[Progress] = None,
-              precision: str = "float64"):
+              precision: str = "float64", keep_buffers: bool = True):
     """Laplacian (umbrella) smoothing (Fujiwara 1995): ``v' = v + λ Σ w_j (u_j − v) / Σ w_j``.
 
     Parameters
@@ -76,7 +78,8 @@ def laplacian(vertices, faces, *, iterations: int = 10, lam: float = 0.5, weight
         return uniform_passes(vertices, faces, [lam] * n, [False] * n, None,
                                structure=structure, constraint=constraint, gain=gain,
                                face_groups=face_groups, progress=progress, per_report=1,
-                               text="Laplacian smoothing", precision=precision)
+                               text="Laplacian smoothing", precision=precision,
+                               keep_buffers=keep_buffers)
     st = prepare(vertices, faces, structure=structure, constraint=constraint, gain=gain,
                   rings=rings, face_groups=face_groups, iterations=iterations)
     buf = np.empty_like(st.pos)
@@ -91,7 +94,7 @@ def taubin(vertices, faces, *, iterations: int = 20, lam: float = 0.5, mu: float
            weights: str = "uniform", rings: int = 1, constraint: Optional[Constraint] = None,
            gain=None, face_groups=None, slice_axis=None, slice_iterations: int = 0,
            structure: Optional[MeshStructure] = None, progress: Optional[Progress] = None,
-           precision: str = "float64"):
+           precision: str = "float64", keep_buffers: bool = True):
     """Taubin's λ|μ low-pass filter (Taubin 1995, "A signal processing approach to fair surface
     design"): each iteration is a Laplacian pass with factor ``lam`` > 0 then one with ``mu`` < −lam,
     which removes high frequencies without the shrinkage of plain Laplacian smoothing.
@@ -126,7 +129,8 @@ def taubin(vertices, faces, *, iterations: int = 20, lam: float = 0.5, mu: float
                                [it < n_slice for it in range(total) for _ in (0, 1)], axis,
                                structure=structure, constraint=constraint, gain=gain,
                                face_groups=face_groups, progress=progress, per_report=2,
-                               text="Taubin smoothing", precision=precision)
+                               text="Taubin smoothing", precision=precision,
+                               keep_buffers=keep_buffers)
     st = prepare(vertices, faces, structure=structure, constraint=constraint, gain=gain,
                   rings=rings, face_groups=face_groups, iterations=iterations)
     buf = np.empty_like(st.pos)

@@ -16,7 +16,7 @@ from ..model.progress import report
 
 def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constraint, gain,
                    face_groups, progress, per_report: int, text: str,
-                   precision: str = "float64") -> np.ndarray:
+                   precision: str = "float64", keep_buffers: bool = True) -> np.ndarray:
     """Uniform umbrella passes ``factors[p]`` (the 1-ring or feature ring), the hot path of
     :func:`taubin` and :func:`laplacian`: padded neighbour columns and working buffers cached
     in the structure, positions in the column layout of ``_pass_kernels`` (in the
@@ -25,7 +25,8 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     is no ``progress`` (else ``per_report`` passes per call). Same result as the CSR
     :func:`~anatomesh.core.smooth.prepare.umbrella` passes (differences ~1e-13 mm in float64
     from the order of operations; ~1e-4 mm in float32, the precision Blender stores positions
-    in)."""
+    in). ``keep_buffers=False`` (one-shot runs, memory): the neighbourhood CSR is freed once
+    its padded columns exist, the columns and buffers before the result is allocated."""
     v = np.asarray(vertices)
     if v.ndim != 2 or v.shape[1] != 3:
         raise AnatomeshError(f"vertices must be an (N, 3) array of positions in mm, got shape {v.shape}")
@@ -41,6 +42,9 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     else:
         offsets, nbr, _ = s.feature_ring(face_groups)
     ring = s.padded(offsets, nbr, _k.PAD_WIDTH, dt, _k.EXT_WIDTH)
+    if not keep_buffers:  # memory: the feature ring's CSR is not needed once padded
+        del offsets, nbr
+        s.release_buffers()
     g = check_gain(gain, n)
     c = constraint or Constraint()
     kind, center, frame, frame_inv, radius, start = c.arrays(v)
@@ -65,14 +69,18 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     on_axis = np.asarray(on_axis, np.bool_)
     total = factors.shape[0]
     step = total if progress is None else max(1, int(per_report))
-    which = 0
+    which, src_dst = 0, None
     for p0 in range(0, total, step):
-        src, dst = (a, b) if which == 0 else (b, a)
-        r = _k.padded_passes(src, dst, *ring, factors[p0:p0 + step], on_axis[p0:p0 + step],
+        src_dst = (a, b) if which == 0 else (b, a)
+        r = _k.padded_passes(*src_dst, *ring, factors[p0:p0 + step], on_axis[p0:p0 + step],
                              None if g.size == 0 else g.astype(dt), axis, kind == 2, box_c,
                              cap_s, r2, metric)
         which ^= r
         report(progress, min(p0 + step, total) / total, text)
+    result = a if which == 0 else b
+    if not keep_buffers:  # memory: only the result's buffer is left when the output is made
+        del ring, bufs, a, b, src_dst, box_c, cap_s
+        s.release_buffers()
     out = np.empty((n, 3), out_dtype(vertices))
-    _k.from_columns(a if which == 0 else b, frame_inv if boxed else EYE, out)
+    _k.from_columns(result, frame_inv if boxed else EYE, out)
     return out

@@ -247,8 +247,10 @@ class SmoothingSession:
 
     def _filtered(self, name: str, kw: dict, cons: tuple, keep: bool) -> np.ndarray:
         """The filter's positions (N, 3) float64, clamped into the constraint in float64
-        (float32 passes round); ``keep=False``: the passes' buffers and junction groups are
-        freed."""
+        (float32 passes round); ``keep=False``: the passes' buffers, rings and junction groups
+        are freed."""
+        if not keep and name in ("taubin", "laplacian"):
+            kw["keep_buffers"] = False
         try:
             pos = np.ascontiguousarray(FILTERS[name](self.rest, self.faces, **kw), np.float64)
         except TypeError as e:  # an unknown keyword for this filter
@@ -256,6 +258,7 @@ class SmoothingSession:
         if not keep:
             self.structure.release_buffers()
             self._cache.pop("groups", None)
+            kw.pop("face_groups", None)
         clamp(pos, cons)
         return pos
 
@@ -327,10 +330,13 @@ class SmoothingSession:
 
     def release(self) -> None:
         """Free what only the guards and passes use (the face buckets, the volume regions, the
-        structure's padded rings and buffers; rebuilt if needed): a one-shot run measures
-        without them, so its peak memory is the larger of the two steps, not their sum."""
-        self._cache.pop("boxes", None)
-        self._cache.pop("regions", None)
+        cell boxes, the structure's padded rings and buffers; rebuilt if needed): a one-shot
+        run measures without them, so its peak memory is the larger of the two steps, not
+        their sum."""
+        for key in [k for k in self._cache if k in ("boxes", "regions") or
+                    (isinstance(k, tuple) and k[0] == "cell")]:
+            del self._cache[key]
+        self._cells.clear()
         self.structure.release_buffers()
 
     def smooth(self, method: str = DEFAULT, *, measure: bool = True, distances: bool = True,

@@ -100,6 +100,7 @@ class ShellMeasures:
         the rest cannot change), saving the per-shell topology pass."""
         now, angle = self._sums(after, angles=True)
         angles = self._angle_stats(angle)
+        del angle  # memory: the distances below need their own per-face samples
         worst_disp = np.empty(len(self.values))
         _k.label_max(self.sides, self.s.faces, np.linalg.norm(after - self.rest, axis=1), worst_disp)
         dist = self._distances(after) if distances else None

@@ -47,18 +47,39 @@ def test_a_session_smooths_again_exactly_as_fresh_calls(map41):
 
 
 def test_a_one_shot_run_frees_each_steps_caches_and_gives_the_same_surfaces(map41):
-    """keep=False (the CLI's driver): the passes' buffers, junction groups, volume regions and
-    face buckets are gone after the run (memory: the peak is the largest step's), the surfaces
-    and report are those of a session that keeps them."""
+    """keep=False (the CLI's driver): the passes' buffers and rings, junction groups, volume
+    regions, cell boxes and face buckets are gone after the run (memory: the peak is the
+    largest step's), the surfaces and report are those of a session that keeps them."""
     kept, kept_rep = SmoothingSession(map41).smooth("organ")
     session = SmoothingSession(map41)
     once, rep = session.smooth("organ", keep=False)
     np.testing.assert_array_equal(once.vertices, kept.vertices)
     assert rep.shells == kept_rep.shells and rep.params == kept_rep.params
     assert not {"boxes", "regions", "groups"} & set(session._cache)
-    assert not session.structure._padded and not session.structure._buffers
+    assert not [k for k in session._cache if isinstance(k, tuple) and k[0] == "cell"]
+    s = session.structure
+    assert not s._padded and not s._buffers and not s._feature
     again, _ = session.smooth("organ")  # rebuilt on demand
     np.testing.assert_array_equal(again.vertices, kept.vertices)
+
+
+def test_passes_that_keep_no_buffers_give_the_same_positions_and_leave_none(map41):
+    """taubin(keep_buffers=False), as a one-shot run calls it: bit for bit the positions of the
+    default call, and the structure keeps no padded columns, feature rings or buffers (the
+    rings are freed before the passes run, the buffers before the result is made)."""
+    from anatomesh.core.geometry.neighbors import MeshStructure
+    from anatomesh.core.smooth.filters import taubin
+    from anatomesh.core.smooth.session import face_groups_of
+
+    groups = face_groups_of(map41.face_labels)
+    kept = MeshStructure(map41.faces, map41.n_vertices)
+    want = taubin(map41.vertices, map41.faces, structure=kept, face_groups=groups)
+    assert kept._padded and kept._buffers and kept._feature
+    s = MeshStructure(map41.faces, map41.n_vertices)
+    got = taubin(map41.vertices, map41.faces, structure=s, face_groups=groups,
+                 keep_buffers=False)
+    np.testing.assert_array_equal(got, want)
+    assert not s._padded and not s._buffers and not s._feature
 
 
 def test_the_report_sums_faces_a_block_at_a_time_and_the_block_changes_nothing(map61, monkeypatch):
