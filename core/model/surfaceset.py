@@ -101,17 +101,20 @@ class SurfaceSet:
         ``affine``: the voxel → mm matrix of the volume the surfaces came from (smoothing boxes
         each vertex in a voxel around its start); ``space`` the meshes' space."""
         meshes = list(meshes)
-        sizes = [m.n_vertices for m in meshes]
-        offsets = np.cumsum([0] + sizes)
-        faces = [m.faces.astype(np.int64) + o for m, o in zip(meshes, offsets[:-1])]
-        labels = [np.tile(np.array([[k + 1, 0]], np.int32), (m.n_faces, 1)) for k, m in enumerate(meshes)]
+        offsets = np.cumsum([0] + [m.n_vertices for m in meshes])
+        rows = np.cumsum([0] + [m.n_faces for m in meshes])
+        # memory: the set's int32 arrays filled mesh by mesh, no int64 copies to convert
+        faces = np.empty((rows[-1], 3), np.int32)
+        labels = np.zeros((rows[-1], 2), np.int32)
+        for k, m in enumerate(meshes):
+            np.add(m.faces, offsets[k], out=faces[rows[k]:rows[k + 1]], casting="unsafe")
+            labels[rows[k]:rows[k + 1], 0] = k + 1
         table = {k + 1: LabelInfo(k + 1, m.name or f"surface {k + 1}", tuple(m.color))
                  for k, m in enumerate(meshes)}
         return cls(np.concatenate([m.vertices for m in meshes] or [np.zeros((0, 3))]),
-                   np.concatenate(faces or [np.zeros((0, 3), np.int64)]),
-                   np.concatenate(labels or [np.zeros((0, 2), np.int32)]), None, affine, space,
-                   table, shell_values={k + 1: m.value for k, m in enumerate(meshes)
-                                        if m.value is not None})
+                   faces, labels, None, affine, space, table,
+                   shell_values={k + 1: m.value for k, m in enumerate(meshes)
+                                 if m.value is not None})
 
     def __repr__(self) -> str:
         return (f"SurfaceSet({self.n_vertices:,} vertices, {self.n_faces:,} faces, "
