@@ -23,3 +23,27 @@ def test_from_meshes_gives_each_mesh_back_as_its_shell():
         assert topology(sh.vertices, sh.faces).genus == topology(m.vertices, m.faces).genus
         np.testing.assert_array_equal(s.vertices[sh.meta["vertex_ids"]], sh.vertices)
     assert topology(shells[1].vertices, shells[1].faces).genus == 1
+
+
+def test_from_meshes_stacks_int32_faces_without_transient_copies():
+    """The faces land in the set's int32 array offset by the vertices before them, face labels
+    (k + 1, 0); memory: nothing is allocated beyond what the set keeps (an int64 copy of the
+    faces to convert would show as 2x the faces' bytes; tracemalloc sees numpy's arrays)."""
+    import tracemalloc
+
+    sv, sf = icosphere(6, 10.0)  # 81,920 faces
+    tv, tf = torus(30.0, 5.0)
+    meshes = [Mesh(sv, sf.astype(np.int64)), Mesh(tv, tf.astype(np.int32))]
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        s = SurfaceSet.from_meshes(meshes, affine=np.eye(4))
+        kept, peak = (x - base for x in tracemalloc.get_traced_memory())
+    finally:
+        tracemalloc.stop()
+    assert s.faces.dtype == np.int32 and s.face_labels.dtype == np.int32
+    np.testing.assert_array_equal(s.faces[:len(sf)], sf)
+    np.testing.assert_array_equal(s.faces[len(sf):], tf + len(sv))
+    np.testing.assert_array_equal(s.face_labels[:, 0], np.repeat([1, 2], [len(sf), len(tf)]))
+    assert not s.face_labels[:, 1].any()
+    assert peak <= kept + (1 << 16), (peak, kept)
