@@ -273,8 +273,9 @@ class SmoothingSession:
         if preserve:
             pos = self.regions().restore(pos, self.structure, cons,
                                          np.zeros(0) if gain is None else gain)
-            if not keep:
+            if not keep:  # and the feature rings the regions of independent surfaces need
                 self._cache.pop("regions", None)
+                self.structure.release_buffers()
             if fold_guard:
                 unfolded += unfold_in_place(pos, self.rest, self.structure)
             extra["preserve_volume"] = True
