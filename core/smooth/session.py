@@ -334,8 +334,8 @@ class SmoothingSession:
         cell boxes, the structure's padded rings and buffers; rebuilt if needed): a one-shot
         run measures without them, so its peak memory is the larger of the two steps, not
         their sum."""
-        for key in [k for k in self._cache if k in ("boxes", "regions") or
-                    (isinstance(k, tuple) and k[0] == "cell")]:
+        for key in [k for k, v in self._cache.items()
+                    if k in ("boxes", "regions") or id(v) in self._cells]:
             del self._cache[key]
         self._cells.clear()
         self.structure.release_buffers()
