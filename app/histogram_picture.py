@@ -14,7 +14,7 @@ from typing import Dict, List, Sequence, Tuple
 
 import numpy as np
 
-from ..core.io.describe import histogram
+from ..core.io.describe import clamped_histogram, histogram
 from .bitmap_font import draw_text, text_size
 
 BINS = 200
@@ -32,7 +32,7 @@ def histogram_picture(values: np.ndarray, hounsfield: bool,
     v = v[np.isfinite(v)] if v.dtype.kind == "f" else v
     facts = histogram(v, hounsfield)
     lo, hi = facts["edges"][0], facts["edges"][-1]
-    counts, _ = np.histogram(np.clip(v, lo, hi), bins=BINS, range=(lo, hi))
+    counts, _ = clamped_histogram(v, BINS, lo, hi)
     w, h = size
     img = np.full((h, w, 3), 255, np.uint8)
     box = (64, 64, w - 20, h - 56)  # x0, y0 (top), x1, y1 (bottom) of the plot area

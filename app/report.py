@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Dict, List, Optional
 
 import numpy as np
 
-from ..core.geometry.topology import area_and_volume, topology
+from ..core.geometry.topology import topology_and_size
 from ..core.io.describe import describe
 from ..core.model.mesh import Mesh
 from .outputs import relative
@@ -65,8 +65,7 @@ def build_report(result: "Result") -> Dict:
 def surface_entry(m: Mesh, extra: Dict, files: Dict[str, Path], smoothing: Dict,
                   decimation: Optional[Dict], base: Path) -> Dict:
     """One surface's entry: its files, topology, size, and the smoothing/decimation measures."""
-    topo = topology(m.vertices, m.faces)
-    area, volume = area_and_volume(m.vertices, m.faces)
+    topo, area, volume = topology_and_size(m.vertices, m.faces)
     return {"value": m.value, "name": m.name, "color": list(m.color),
             "files": {fmt: relative(path, base) for fmt, path in files.items()},
             "vertices": topo.vertices, "faces": topo.faces,

@@ -110,15 +110,27 @@ def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> 
     Only vertices used by faces count in V. Linear time (numba passes per face and per vertex);
     meshes with faces that repeat a vertex index go through the sorted edge list instead.
     """
+    return topology_and_size(vertices, faces, min_area)[0]
+
+
+def topology_and_size(vertices: np.ndarray, faces: np.ndarray,
+                      min_area: float = 0.0) -> Tuple[Topology, float, float]:
+    """``(topology, area mm², enclosed volume mm³)``: :func:`topology` and
+    :func:`area_and_volume` from one pass over the faces (a report's per-surface facts)."""
     v = _point_array(vertices)
     f = _index_array(faces)
+    if f.shape[0] == 0:
+        return Topology(0, 0, 0, 0, 0, None, False, True, True, 0, 0, 0, 0), 0.0, 0.0
+    area, volume, ndeg, repeated = _topology_kernels.face_measures(v, f, float(min_area))
+    if repeated:
+        return _topology_sorted(v, f, min_area), float(area), float(volume)
+    return _topology_linear(v, f, int(ndeg)), float(area), float(volume)
+
+
+def _topology_linear(v: np.ndarray, f: np.ndarray, ndeg: int) -> Topology:
+    """:func:`topology` of faces that repeat no vertex index (numba passes per vertex)."""
     nv_all = int(v.shape[0])
     F = int(f.shape[0])
-    if F == 0:
-        return Topology(0, 0, 0, 0, 0, None, False, True, True, 0, 0, 0, 0)
-    _, _, ndeg, repeated = _topology_kernels.face_measures(v, f, float(min_area))
-    if repeated:
-        return _topology_sorted(v, f, min_area)
     vf_offsets, vf = _neighbors_kernels.vertex_faces(f, np.int64(max(nv_all, int(f.max()) + 1)))
     E, boundary, nm_edges, unoriented, nm_verts, V = _topology_kernels.vertex_topology(f, vf_offsets, vf)
     ncomp, _ = face_components(f, nv_all)

@@ -7,7 +7,7 @@ import pytest
 from conftest import shared
 
 from anatomesh.core.extract.multilabel import label_surfaces
-from anatomesh.core.geometry.topology import area_and_volume, face_components, topology
+from anatomesh.core.geometry.topology import area_and_volume, face_components, topology, topology_and_size
 from anatomesh.core.io import load
 from anatomesh.core.model.mesh import signed_volume, surface_area
 
@@ -60,6 +60,16 @@ def test_area_and_volume_equal_the_numpy_measures(shells):
         assert area == pytest.approx(surface_area(m.vertices, m.faces), rel=1e-9)
         assert volume == pytest.approx(signed_volume(m.vertices, m.faces), rel=1e-9)
         assert volume > 0
+
+
+def test_topology_and_size_in_one_pass_equal_the_two_functions(shells):
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    repeated = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2], [1, 1, 2]])  # sorted path
+    for vertices, faces in [(m.vertices, m.faces) for m in shells[:6]] + [(v, repeated)]:
+        t, area, volume = topology_and_size(vertices, faces)
+        assert t == topology(vertices, faces)
+        assert (area, volume) == area_and_volume(vertices, faces)
+    assert topology_and_size(v, np.zeros((0, 3), int))[1:] == (0.0, 0.0)
 
 
 def test_faces_repeating_a_vertex_take_the_sorted_path():

@@ -64,3 +64,22 @@ def test_sample_label_map_detected_with_its_values():
     vol = load(SAMPLE / "example_seg.nii.gz")
     assert vol.is_label_map and vol.data.dtype == np.uint8
     assert sorted(vol.labels) == [int(v) for v in np.unique(vol.data) if v]
+
+
+def test_histogram_of_the_chest_ct_counts_as_the_clipped_copy_did_with_less_memory():
+    import tracemalloc
+
+    from anatomesh.core.io.describe import HIST_BINS, clamped_histogram, histogram
+
+    vol = load(shared("itkelastix_chest_ct"))
+    sample = vol.data.ravel()[:: vol.data.size // 4_000_000 + 1]  # what describe histograms
+    expected = np.histogram(np.clip(sample, -1100.0, 2000.0), bins=HIST_BINS, range=(-1100.0, 2000.0))
+    tracemalloc.start()
+    counts, edges = clamped_histogram(sample, HIST_BINS, -1100.0, 2000.0)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert np.array_equal(counts, expected[0]) and np.array_equal(edges, expected[1])
+    assert counts.sum() == sample.size  # air below -1100 HU and metal above 2000 in the end bins
+    assert peak < 0.5 * sample.size * 8  # the float64 clipped copy alone was sample.size * 8
+    facts = histogram(vol.data, hounsfield=True)
+    assert facts["counts"] == counts.tolist() and "air" in {p.get("tissue") for p in facts["peaks"]}
