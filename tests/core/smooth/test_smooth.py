@@ -237,6 +237,21 @@ def test_feature_rings_match_reference_on_three_labels():
     assert np.count_nonzero(kind == 1) > 10 and np.count_nonzero(kind == 2) > 0
 
 
+def test_rings_of_a_real_map_match_the_references():
+    """The parallel ring kernels (one_ring, feature_rings: every vertex writes its own rows) on
+    the 41-label TotalSegmentator map, junctions of 3+ labels and non-manifold seams included."""
+    from anatomesh.core.io import load
+
+    ss = label_surfaces(load(shared("totalsegmentator", "example_seg.nii.gz")))
+    groups = S.face_groups_of(ss.face_labels)
+    s = N.MeshStructure(ss.faces, ss.n_vertices)
+    assert csr_rows(s.ring_offsets, s.ring) == ref_rings(ss.faces, ss.n_vertices)
+    offsets, idx, kind = s.feature_ring(groups)
+    ref, ref_kind = ref_feature_rings(ss.faces, ss.n_vertices, groups)
+    assert csr_rows(offsets, idx) == ref and np.array_equal(kind, ref_kind)
+    assert np.count_nonzero(kind == 1) > 1000 and np.count_nonzero(kind == 2) > 100
+
+
 def test_structure_is_cached_per_faces_array():
     v, f = noisy_sphere()
     s1 = N.structure(f, len(v))
