@@ -51,14 +51,11 @@ def face_groups_of(face_labels: np.ndarray) -> np.ndarray:
     """A group id per face from its (inside, outside) labels: faces of the same unordered label
     pair share a group (ids in the order of the pairs), so edges between groups are the
     junctions where 3+ labels meet."""
-    fl = np.asarray(face_labels).reshape(-1, 2)
+    fl = np.asarray(face_labels, np.int64).reshape(-1, 2)
     if fl.size == 0:
         return np.zeros(0, np.int64)
     r = int(fl.max()) + 1
-    if fl.dtype != np.int32 or r * r > 1 << 24:  # a set's labels are int32: no int64 copy
-        fl = fl.astype(np.int64)
-    key = np.minimum(fl[:, 0], fl[:, 1]) * r
-    key += np.maximum(fl[:, 0], fl[:, 1])
+    key = np.minimum(fl[:, 0], fl[:, 1]) * r + np.maximum(fl[:, 0], fl[:, 1])
     if r * r > 1 << 24:  # too many labels for a table
         return np.unique(key, return_inverse=True)[1].astype(np.int64).ravel()
     seen = np.zeros(r * r, np.int64)
