@@ -7,6 +7,7 @@ naming the file and the problem, no traceback unless ``--debug``.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 from typing import List, Optional
@@ -45,8 +46,11 @@ def entry() -> None:
 
     Tearing down the interpreter (numba's and LLVM's registries, thousands of modules) costs
     ~0.3 s of CPU after the work is done; every file is closed and written by then, so the
-    process flushes its output and ends with ``os._exit``. In-process callers use :func:`main`.
+    process flushes its output and ends with ``os._exit``. The ~100,000 objects of the imports
+    live as long as the process: frozen out of the garbage collector's reach, its full
+    collections take ~0.05 s less on a label map. In-process callers use :func:`main`.
     """
+    gc.freeze()
     code = main()
     sys.stdout.flush()
     sys.stderr.flush()
