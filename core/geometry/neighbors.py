@@ -28,6 +28,7 @@ import numpy as np
 from . import _neighbors_kernels as _k
 from ..model.errors import AnatomeshError
 from ..model.fingerprint import sample_fingerprint
+from ..model.memory import release_free_memory
 
 CSR = Tuple[np.ndarray, np.ndarray]
 
@@ -176,10 +177,13 @@ class MeshStructure:
 
     def release_buffers(self) -> None:
         """Drop the padded rings, feature rings and working buffers of the smoothing passes
-        (rebuilt on the next call): a one-shot smoothing frees them after its filter."""
+        (rebuilt on the next call): a one-shot smoothing frees them after its filter, and the
+        heap's free pages go back to the system (:func:`~anatomesh.core.model.memory.
+        release_free_memory`)."""
         self._padded.clear()
         self._feature.clear()
         self._buffers.clear()
+        release_free_memory()
 
     def work_buffers(self, dtype=np.float64, count: int = 2,
                      columns: Optional[int] = None) -> Tuple[np.ndarray, ...]:
