@@ -35,8 +35,8 @@ def build_report(result: "Result") -> Dict:
     recipe, p = result.recipe, result.plan
     smoothing = result.smoothing or {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
     base = p.report.parent.resolve()
-    facts = describe(result.volume)
-    facts.pop("histogram", None)
+    facts = dict(result.input_facts) if result.input_facts is not None else \
+        describe(result.volume, want_histogram=False)
     out = {"space": result.volume.space, "units": "mm", "input": facts,
            "recipe": dataclasses.asdict(recipe),
            "smoothing": {"preset": recipe.smooth,

@@ -68,7 +68,7 @@ def run_study(task: StudyTask, progress: Optional[Progress] = None) -> Dict:
             raise AnatomeshError("no such file or folder; check the path", task.path)
         partial = state.new_partial(out, task.id)
         t_run = time.perf_counter()
-        result = run(task.study_recipe(partial), progress)
+        result = run(task.study_recipe(partial), progress, keep_voxels=False)  # memory: one shot
         t_run = time.perf_counter() - t_run
         write_png(thumbnail(result.surfaces), partial / state.THUMBNAIL)
         report = stamp_report(result.report, partial, task, inputs, (time.perf_counter() - t0, t_run))

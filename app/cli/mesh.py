@@ -195,7 +195,7 @@ def cmd_mesh(args) -> int:
     from ..run import run  # speed: the flow's modules load only for this command
 
     recipe = recipe_from_args(args)
-    result = run(recipe, TerminalProgress("meshing"))
+    result = run(recipe, TerminalProgress("meshing"), keep_voxels=False)  # memory: one shot
     rep = result.report
     for note in rep.get("notes", []):  # segmentations (issue 14): what was meshed, on which grid
         print(f"note: {note}", file=sys.stderr)

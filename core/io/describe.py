@@ -30,8 +30,9 @@ HIST_BINS = 48
 PRIVATE_META = ("contours", "dicom_reference")
 
 
-def describe(volume: Union[Volume, Segmentation]) -> Dict:
-    """Facts about a volume as a JSON-ready dict.
+def describe(volume: Union[Volume, Segmentation], want_histogram: bool = True) -> Dict:
+    """Facts about a volume as a JSON-ready dict (``want_histogram=False``: without the scan's
+    histogram, which a run's report leaves out).
 
     Keys: ``format``, ``modality``, ``shape``, ``spacing`` (mm), ``space``, ``orientation`` (3 letters),
     ``affine`` (4x4 nested lists, voxel index → mm in ``space``), ``dtype``, ``min``, ``max``,
@@ -42,7 +43,7 @@ def describe(volume: Union[Volume, Segmentation]) -> Dict:
     each) and ``overlaps`` (pairs, voxels, mm³).
     """
     if isinstance(volume, Segmentation):
-        return _describe_layers(volume)
+        return _describe_layers(volume, want_histogram)
     data = volume.data
     if volume.is_label_map:  # one counting pass gives the range and each label's voxels
         values, counts = value_counts(data)
@@ -71,12 +72,13 @@ def describe(volume: Union[Volume, Segmentation]) -> Dict:
         hounsfield = looks_like_hounsfield(vals)
         if hounsfield and not volume.meta.get("modality"):
             facts["modality"] = "CT (guessed from the Hounsfield value range)"
-        facts["histogram"] = histogram(vals, hounsfield)
+        if want_histogram:
+            facts["histogram"] = histogram(vals, hounsfield)
     return facts
 
 
-def _describe_layers(seg: Segmentation) -> Dict:
-    facts = describe(seg.layers[0])
+def _describe_layers(seg: Segmentation, want_histogram: bool) -> Dict:
+    facts = describe(seg.layers[0], want_histogram)
     facts["labels"] = []
     facts["layers"] = []
     for i, layer in enumerate(seg.layers):

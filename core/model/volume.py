@@ -89,6 +89,12 @@ class Volume:
     def voxel_volume_mm3(self) -> float:
         return float(abs(np.linalg.det(self.affine[:3, :3])))
 
+    def release_voxels(self) -> None:
+        """Let go of the voxel array (one-shot runs, memory: the surfaces are extracted and the
+        input facts taken): ``data`` becomes a read-only zero-stride view of the same shape and
+        dtype holding zeros, so the geometry (shape, affine, spacing) still answers."""
+        self.data = np.broadcast_to(np.zeros((), self.data.dtype), self.data.shape)
+
 
 def convert_affine(affine: np.ndarray, from_space: str, to_space: str) -> np.ndarray:
     """Re-express a voxel→mm affine in another space (RAS ↔ LPS negates x and y)."""
