@@ -154,7 +154,9 @@ def face_ring(faces, vf_offsets, vf):
 
 @njit(parallel=True, cache=True)
 def feature_rings(faces, offsets, nbr, vf_offsets, vf, face_group):
-    """Restrict each 1-ring to what a vertex may smooth with, given a group id per face.
+    """Restrict each 1-ring to what a vertex may smooth with, given a group per face:
+    ``face_group`` (M, 2) int32 pairs compared unordered (a label map's two side labels; ids
+    given as (id, id)).
 
     An edge (i, j) is a *feature edge* when it has one incident face (an open boundary), more
     than two (a non-manifold pinch) or its incident faces do not all carry the same group (a
@@ -203,6 +205,13 @@ def feature_rings(faces, offsets, nbr, vf_offsets, vf, face_group):
     return new_off, out, kind
 
 
+@njit(cache=True, inline="always")
+def _same_pair(pairs, a, b):
+    """Faces a and b carry the same unordered pair (rows of ``pairs`` (M, 2))."""
+    return min(pairs[a, 0], pairs[a, 1]) == min(pairs[b, 0], pairs[b, 1]) and \
+        max(pairs[a, 0], pairs[a, 1]) == max(pairs[b, 0], pairs[b, 1])
+
+
 @njit(cache=True)
 def _mark_features(i, faces, offsets, nbr, vf_offsets, vf, face_group, count, first, is_feature):
     """Flag the feature edges among vertex i's ring entries in ``is_feature``; returns how many.
@@ -223,7 +232,7 @@ def _mark_features(i, faces, offsets, nbr, vf_offsets, vf, face_group, count, fi
             count[a] += 1
             if first[a] == -1:
                 first[a] = f
-            elif first[a] >= 0 and face_group[first[a]] != face_group[f]:
+            elif first[a] >= 0 and not _same_pair(face_group, first[a], f):
                 first[a] = -2
     n = 0
     for a in range(k):

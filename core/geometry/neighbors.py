@@ -136,8 +136,9 @@ class MeshStructure:
 
         Parameters
         ----------
-        face_groups : (M,) integer, optional
-            A group id per face (e.g. the unordered label pair of the two sides); edges whose
+        face_groups : (M,) or (M, 2) integer, optional
+            A group id per face, or a pair per face taken unordered (e.g. a label map set's
+            ``face_labels``, the labels of the two sides: no group table to build); edges whose
             faces carry different groups, or that have one face or more than two, are feature
             edges.
             None: only open boundaries are features.
@@ -150,12 +151,9 @@ class MeshStructure:
         """
         key = self._groups_key(face_groups)
         if key not in self._feature:
-            if face_groups is None:
-                g = np.zeros(self.n_faces, np.int64)
-            else:
-                g = np.ascontiguousarray(face_groups, dtype=np.int64).ravel()
             self._feature[key] = _k.feature_rings(self.faces, self.ring_offsets, self.ring,
-                                                  self.vf_offsets, self.vf, g)
+                                                  self.vf_offsets, self.vf,
+                                                  _group_pairs(face_groups, self.n_faces))
             self._feature.pop(("index", key), None)
         self._last_feature_key = key
         return self._feature[key]
@@ -208,14 +206,15 @@ class MeshStructure:
         if face_groups is None:
             return "none"
         arr = np.asarray(face_groups)
-        if arr.size != self.n_faces:
-            raise AnatomeshError(f"face_groups has {arr.size} entries for {self.n_faces} faces")
+        if arr.shape not in ((self.n_faces,), (self.n_faces, 2)) or arr.dtype.kind not in "iub":
+            raise AnatomeshError(f"face_groups must be {self.n_faces} integer group ids or "
+                                 f"({self.n_faces}, 2) pairs, got {arr.dtype} {arr.shape}")
         sample = sample_fingerprint(arr)
         last = self._groups_seen
         if last is not None and last[0]() is face_groups and last[1] == sample:
             return last[2]
-        g = np.ascontiguousarray(arr, dtype=np.int64).ravel()
-        key = hashlib.blake2b(g.tobytes(), digest_size=16).hexdigest()
+        content = hashlib.blake2b(np.ascontiguousarray(arr).tobytes(), digest_size=16).hexdigest()
+        key = f"{arr.dtype.str}{arr.shape}:{content}"
         try:
             self._groups_seen = (weakref.ref(face_groups), sample, key)
         except TypeError:  # a list: no identity to rely on
@@ -234,6 +233,21 @@ class MeshStructure:
             sub = np.repeat(np.arange(self.n_vertices, dtype=np.int64), np.diff(offsets))
             self._feature[key] = np.searchsorted(full, sub * n + idx)
         return self._feature[key]
+
+
+def _group_pairs(face_groups: Optional[np.ndarray], n_faces: int) -> np.ndarray:
+    """Face groups as the (M, 2) int32 pairs :func:`_k.feature_rings` compares unordered: pairs
+    as they are, ids as (id, id), none as zeros; values beyond int32 renumbered (same equalities)."""
+    if face_groups is None:
+        return np.zeros((n_faces, 2), np.int32)
+    g = np.asarray(face_groups)
+    g = g.reshape(n_faces, -1)
+    wide = not np.can_cast(g.dtype, np.int32)
+    if wide and g.size and (g.min() < np.iinfo(np.int32).min or g.max() > np.iinfo(np.int32).max):
+        g = np.unique(g, return_inverse=True)[1].reshape(g.shape)
+    if g.shape[1] == 1:
+        g = np.repeat(g, 2, axis=1)
+    return np.ascontiguousarray(g, np.int32)
 
 
 # -------------------------------------------------------------------------------------------

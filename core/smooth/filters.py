@@ -23,7 +23,7 @@ fast padded-column path of :mod:`~anatomesh.core.smooth.passes` (same results to
 
 Common keywords: ``constraint`` (:class:`~anatomesh.core.smooth.constraints.Constraint`, re-applied
 after every pass), ``gain`` (per-vertex damping in [0, 1]), ``face_groups`` (a group id per face,
-e.g. the label pair of a SurfaceSet face: vertices on curves where groups meet — junctions of 3+
+or an (M, 2) pair per face compared unordered, e.g. a SurfaceSet's ``face_labels``: vertices on curves where groups meet — junctions of 3+
 labels, open boundaries, non-manifold edges — smooth only along the curve, curve ends and corners
 stay fixed), ``structure`` (a cached :class:`~anatomesh.core.geometry.neighbors.MeshStructure`),
 ``progress``, and for :func:`taubin` and :func:`laplacian` ``keep_buffers`` (False: the rings and

@@ -114,10 +114,10 @@ class SmoothingSession:
         return self._cache[key]
 
     def face_groups(self) -> Optional[np.ndarray]:
-        """(M,) junction groups of a label map's set (:func:`face_groups_of`); None otherwise."""
-        if not self.has_lattice:
-            return None
-        return self._cached("groups", lambda: face_groups_of(self.surfaces.face_labels))
+        """The junction groups of a label map's set: its (M, 2) ``face_labels``, which the
+        feature rings compare as unordered pairs (the groups of :func:`face_groups_of` without
+        building them: 8 bytes a face and ~0.3 s on an 834x512x512 map); None otherwise."""
+        return self.surfaces.face_labels if self.has_lattice else None
 
     def regions(self) -> VolumeRegions:
         """The regions of the volume step with their unsmoothed volumes: the labels of a label
@@ -257,7 +257,6 @@ class SmoothingSession:
             raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
         if not keep:
             self.structure.release_buffers()
-            self._cache.pop("groups", None)
             kw.pop("face_groups", None)
         clamp(pos, cons)
         return pos

@@ -250,6 +250,14 @@ def test_rings_of_a_real_map_match_the_references():
     ref, ref_kind = ref_feature_rings(ss.faces, ss.n_vertices, groups)
     assert csr_rows(offsets, idx) == ref and np.array_equal(kind, ref_kind)
     assert np.count_nonzero(kind == 1) > 1000 and np.count_nonzero(kind == 2) > 100
+    # the set's (inside, outside) labels as unordered pairs: the same rings, no group table
+    swapped = ss.face_labels[:, ::-1].copy()  # unordered: the sides swapped change nothing
+    for pairs in (ss.face_labels, swapped, groups.astype(np.int64) + 2**40):  # ids past int32
+        p_offsets, p_idx, p_kind = s.feature_ring(pairs)
+        assert np.array_equal(p_offsets, offsets) and np.array_equal(p_idx, idx)
+        assert np.array_equal(p_kind, kind)
+    with pytest.raises(AnatomeshError, match="integer group ids"):
+        s.feature_ring(np.zeros((ss.n_faces, 3), np.int32))
 
 
 def test_structure_is_cached_per_faces_array():
