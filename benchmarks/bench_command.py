@@ -18,7 +18,7 @@ Cases (the inputs are real scans from ../shared/data):
 Each run is a fresh process (``python -m anatomesh.app.cli mesh ... --overwrite``, STL out), with
 a warm numba cache (one untimed run first); runs of ours and of the peer are interleaved and the
 best of ``--repeat`` is kept. For every case ours runs twice: with today's default smoothing and
-with ``--smooth none``. The stage breakdown comes from the report's ``timings`` (read, extract,
+with ``--smooth none``. The stage breakdown comes from the report's ``timings`` (read, facts, extract,
 smooth, decimate, write, report); ``start+exit`` is the rest of the process's wall time (Python,
 imports, kernel loading, exit).
 
@@ -226,7 +226,7 @@ def show(case, res, peer: bool) -> None:
     best_peer = min(res["runs"]["peer"], key=lambda r: r[0]) if peer else None
     for smooth in ("default", "none"):
         wall, cpu, rss, t = min(res["runs"][smooth], key=lambda r: r[0])
-        stages = ["read", "extract", "smooth", "decimate", "shells", "write", "report"]
+        stages = ["read", "facts", "extract", "smooth", "decimate", "shells", "write", "report"]
         parts = {s: t.get(f"{s}_s", 0.0) for s in stages}
         rest = wall - t.get("total_s", 0.0) - t.get("report_s", 0.0)
         label = "ours, default smoothing" if smooth == "default" else "ours, --smooth none     "
