@@ -286,7 +286,7 @@ class SmoothingSession:
             report(progress, 0.97, "checking for crossing faces")
             pairs = self.boxes(listing=keep) if id(c) in self._cells else None
             out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
-                                           structure=self.structure)
+                                           structure=self.structure, in_place=True)
             extra["untangled_vertices"] = info["moved_vertices"]
             if fold_guard and info["moved_vertices"]:
                 out, more, left = self._unfold_untangled(out, pairs)
@@ -308,8 +308,10 @@ class SmoothingSession:
             if moved == 0:
                 break
             unfolded += moved
-            out, info = untangle_crossings(pos.astype(np.float32), self.surfaces.vertices,
-                                           self.faces, pairs=pairs, structure=s,
+            out = pos.astype(np.float32)
+            del pos  # memory: untangled in place, the float32 positions only
+            out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
+                                           structure=s, in_place=True,
                                            active=faces_around(s, np.flatnonzero(touched)))
             left = info["crossings_left"]
         return out, unfolded, left

@@ -33,7 +33,7 @@ from ..model.errors import AnatomeshError
 def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, rounds: int = 8,
              shrink: float = 0.5, pairs: Optional[FaceBoxes] = None,
              structure: Optional[MeshStructure] = None,
-             active: Optional[np.ndarray] = None) -> Tuple[np.ndarray, Dict]:
+             active: Optional[np.ndarray] = None, in_place: bool = False) -> Tuple[np.ndarray, Dict]:
     """Move the vertices of crossing faces back toward ``rest`` until no faces cross.
 
     ``vertices`` (N, 3) float, mm: the smoothed positions; ``rest`` (N, 3): the unsmoothed ones
@@ -44,11 +44,12 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
     (only the pairs that can cross are tested); None: search all faces. ``structure``:
     the faces' neighbourhoods, if built. ``active`` (M,) bool: only pairs with one of these
     faces are checked at the start (the faces around vertices moved since an untangled state;
-    None: all). Returns ``(vertices, info)`` with ``info =
+    None: all). ``in_place``: move ``vertices`` themselves (a float array the caller gives up:
+    no copy, memory). Returns ``(vertices, info)`` with ``info =
     {"crossing_pairs": found at the start, "moved_vertices": how many were pulled back,
     "rounds": rounds used, "crossings_left": pairs left (0 unless ``rest`` itself crosses)}``.
     """
-    v = np.array(vertices, copy=True)
+    v = vertices if in_place and _writable_float(vertices) else np.array(vertices, copy=True)
     r = np.asarray(rest, dtype=v.dtype)
     f = np.asarray(faces)
     if r.shape != v.shape:
@@ -79,6 +80,10 @@ def untangle(vertices: np.ndarray, rest: np.ndarray, faces: np.ndarray, *, round
     info["moved_vertices"] = int(moved.sum())
     info["crossings_left"] = int(len(found))
     return v, info
+
+
+def _writable_float(a) -> bool:
+    return isinstance(a, np.ndarray) and a.dtype in (np.float32, np.float64) and a.flags.writeable
 
 
 def rows_of(offsets: np.ndarray, values: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -103,6 +103,9 @@ def test_untangling_over_cached_pairs_equals_untangling_over_all_faces(smoothed_
         slow, ref = untangle(moved, ss.vertices, ss.faces)
         assert info == ref and info["crossing_pairs"] > 0
         np.testing.assert_array_equal(fast, slow)
+        given = moved.copy()  # in place (memory): the same positions, in the array given
+        same, _ = untangle(given, ss.vertices, ss.faces, pairs=pairs, structure=s, in_place=True)
+        assert same is given and np.array_equal(same, fast) and not np.array_equal(moved, fast)
         assert len(self_intersections(fast, ss.faces)) == 0
         found += info["crossing_pairs"]
     assert found > 20
