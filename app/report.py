@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Dict, List, Optional
 import numpy as np
 
 from ..core.geometry.topology import topology_and_size
-from ..core.io.describe import describe
 from ..core.model.mesh import Mesh
 from .outputs import relative
 from .recipe import SMOOTH_NONE, dump_recipe
@@ -35,8 +34,7 @@ def build_report(result: "Result") -> Dict:
     recipe, p = result.recipe, result.plan
     smoothing = result.smoothing or {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
     base = p.report.parent.resolve()
-    facts = dict(result.input_facts) if result.input_facts is not None else \
-        describe(result.volume, want_histogram=False)
+    facts = dict(result.input_facts)  # taken by run() before the voxels may be let go
     out = {"space": result.volume.space, "units": "mm", "input": facts,
            "recipe": dataclasses.asdict(recipe),
            "smoothing": {"preset": recipe.smooth,

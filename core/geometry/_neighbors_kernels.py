@@ -1,8 +1,8 @@
 """Numba kernels building compressed (CSR) neighbourhoods of a triangle mesh.
 
-Serial on purpose, but for :func:`one_ring` and :func:`feature_rings` (millions of vertices in
-the largest maps' smoothing): each runs once per mesh in O(M) (~0.1 s per million triangles) and
-serial kernels compile several times faster than parallel ones.
+Serial on purpose, but for :func:`one_ring`, :func:`feature_rings` and the row packing they use
+(millions of vertices in the largest maps' smoothing): each runs once per mesh in O(M) (~0.1 s
+per million triangles) and serial kernels compile several times faster than parallel ones.
 
 Private: call them through :mod:`anatomesh.core.geometry.neighbors`, which validates inputs. Every CSR is
 a pair ``(offsets (n+1,) int64, indices (nnz,) int32)``: the neighbours of item ``i`` are
@@ -34,15 +34,16 @@ def _sort_unique_segment(buf, start, stop):
     return n
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _compact_rows(buf, upper_offsets, counts):
-    """Pack the first ``counts[i]`` entries of each row of an over-allocated CSR."""
+    """Pack the first ``counts[i]`` entries of each row of an over-allocated CSR (rows copied
+    in parallel)."""
     n = counts.shape[0]
     offsets = np.zeros(n + 1, np.int64)
     for i in range(n):
         offsets[i + 1] = offsets[i] + counts[i]
     out = np.empty(offsets[n], np.int32)
-    for i in range(n):
+    for i in prange(n):
         s = upper_offsets[i]
         d = offsets[i]
         for k in range(counts[i]):
@@ -90,14 +91,7 @@ def one_ring(faces, n_vertices, vf_offsets, vf):
                     buf[w] = v
                     w += 1
         counts[i] = _sort_unique_segment(buf, upper[i], w)
-    offsets = np.zeros(n_vertices + 1, np.int64)
-    for i in range(n_vertices):
-        offsets[i + 1] = offsets[i] + counts[i]
-    out = np.empty(offsets[n_vertices], np.int32)
-    for i in prange(n_vertices):
-        for k in range(counts[i]):
-            out[offsets[i] + k] = buf[upper[i] + k]
-    return offsets, out
+    return _compact_rows(buf, upper, counts)
 
 
 @njit(cache=True)

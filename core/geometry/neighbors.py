@@ -240,8 +240,7 @@ def _group_pairs(face_groups: Optional[np.ndarray], n_faces: int) -> np.ndarray:
     as they are, ids as (id, id), none as zeros; values beyond int32 renumbered (same equalities)."""
     if face_groups is None:
         return np.zeros((n_faces, 2), np.int32)
-    g = np.asarray(face_groups)
-    g = g.reshape(n_faces, -1)
+    g = np.asarray(face_groups).reshape(n_faces, -1)
     wide = not np.can_cast(g.dtype, np.int32)
     if wide and g.size and (g.min() < np.iinfo(np.int32).min or g.max() > np.iinfo(np.int32).max):
         g = np.unique(g, return_inverse=True)[1].reshape(g.shape)

@@ -12,24 +12,21 @@ from __future__ import annotations
 
 import ctypes
 import sys
+from functools import lru_cache
 from typing import Callable, Optional
 
-_UNSET = object()
-_trim: object = _UNSET
 
-
+@lru_cache(maxsize=1)
 def _malloc_trim() -> Optional[Callable[[int], int]]:
     """glibc's ``malloc_trim``, or None where there is none (looked up once)."""
-    global _trim
-    if _trim is _UNSET:
-        _trim = None
-        if sys.platform.startswith("linux"):
-            try:
-                _trim = ctypes.CDLL(None).malloc_trim
-                _trim.argtypes, _trim.restype = [ctypes.c_size_t], ctypes.c_int
-            except (OSError, AttributeError):  # musl and other C libraries
-                _trim = None
-    return _trim
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):  # musl and other C libraries
+        return None
+    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+    return trim
 
 
 def release_free_memory() -> bool:

@@ -23,9 +23,9 @@ fast padded-column path of :mod:`~anatomesh.core.smooth.passes` (same results to
 
 Common keywords: ``constraint`` (:class:`~anatomesh.core.smooth.constraints.Constraint`, re-applied
 after every pass), ``gain`` (per-vertex damping in [0, 1]), ``face_groups`` (a group id per face,
-or an (M, 2) pair per face compared unordered, e.g. a SurfaceSet's ``face_labels``: vertices on curves where groups meet — junctions of 3+
-labels, open boundaries, non-manifold edges — smooth only along the curve, curve ends and corners
-stay fixed), ``structure`` (a cached :class:`~anatomesh.core.geometry.neighbors.MeshStructure`),
+or an (M, 2) pair per face compared unordered, e.g. a SurfaceSet's ``face_labels``: vertices on
+curves where groups meet — junctions of 3+ labels, open boundaries, non-manifold edges — smooth
+only along the curve, curve ends and corners stay fixed), ``structure`` (a cached :class:`~anatomesh.core.geometry.neighbors.MeshStructure`),
 ``progress``, and for :func:`taubin` and :func:`laplacian` ``keep_buffers`` (False: the rings and
 working buffers the passes cache in the structure are freed as soon as they are used, one-shot
 runs' memory). Bade, Haase & Preim 2006 ("Comparison of fundamental mesh smoothing algorithms for

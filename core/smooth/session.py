@@ -247,8 +247,7 @@ class SmoothingSession:
 
     def _filtered(self, name: str, kw: dict, cons: tuple, keep: bool) -> np.ndarray:
         """The filter's positions (N, 3) float64, clamped into the constraint in float64
-        (float32 passes round); ``keep=False``: the passes' buffers, rings and junction groups
-        are freed."""
+        (float32 passes round); ``keep=False``: the passes' buffers and rings are freed."""
         if not keep and name in ("taubin", "laplacian"):
             kw["keep_buffers"] = False
         try:
@@ -257,7 +256,6 @@ class SmoothingSession:
             raise AnatomeshError(f"smoothing method {name!r}: {e}") from None
         if not keep:
             self.structure.release_buffers()
-            kw.pop("face_groups", None)
         clamp(pos, cons)
         return pos
 
