@@ -39,8 +39,7 @@ def edge_neighbours(s: MeshStructure) -> np.ndarray:
 
 
 def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
-                    near: Optional[np.ndarray] = None,
-                    dtype=np.float64) -> Tuple[np.ndarray, np.ndarray]:
+                    near: Optional[np.ndarray] = None) -> Tuple[np.ndarray, np.ndarray]:
     """Distances from one position of a mesh to another, sampled locally.
 
     Parameters
@@ -52,19 +51,18 @@ def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
 
     Returns
     -------
-    at_vertices : (3M,) ``dtype`` (float64, or float32 to halve the memory: measured in float64,
-        stored rounded to 1e-7 relative)
+    at_vertices : (3M,) float64
         Entry ``t`` of the vertex → faces CSR (``s.vf_offsets``, ``s.vf``): the distance from
         ``points[i]`` (i the row) to face ``s.vf[t]`` at ``vertices``; the sample of vertex i is
         the minimum over its row (or over the faces of one label in it).
-    at_centroids : (M,) ``dtype``
+    at_centroids : (M,) float64
         The distance from the centroid of face f at ``points`` to face f (and ``near[f]``) at
         ``vertices``.
     """
     n = s.n_vertices
     p, v = _positions(points, n, "points"), _positions(vertices, n, "vertices")
-    at_vertices = np.empty(s.vf.shape[0], dtype)
-    at_centroids = np.empty(s.n_faces, dtype)
+    at_vertices = np.empty(s.vf.shape[0])
+    at_centroids = np.empty(s.n_faces)
     _k.incident_distances(p, v, s.faces, s.vf_offsets, s.vf, at_vertices)
     nb = np.full((s.n_faces, 0), -1, np.int32) if near is None else \
         np.ascontiguousarray(near, np.int32)
@@ -72,3 +70,35 @@ def local_distances(points: np.ndarray, vertices: np.ndarray, s: MeshStructure,
         raise AnatomeshError(f"near must have one row per face ({s.n_faces}), got {nb.shape}")
     _k.centroid_distances(p, v, s.faces, nb, at_centroids)
     return at_vertices, at_centroids
+
+
+def distances_by_group(after: np.ndarray, rest: np.ndarray, s: MeshStructure, groups: np.ndarray,
+                       n_groups: int) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples of :func:`local_distances` in both directions (``after`` to ``rest`` and
+    back, centroids to their face and the faces across its edges), reduced per group in one
+    pass without storing them (memory: O(groups), not O(faces)).
+
+    Parameters
+    ----------
+    after, rest : (N, 3) float, mm — the same vertices at two positions
+    s : MeshStructure of the faces
+    groups : (M, 2) int — the group (0 … n_groups − 1) on each side of each face, −1 none; a
+        vertex gives one sample per group around it (the minimum over its faces of that group),
+        a centroid one per group on its face's sides
+
+    Returns
+    -------
+    worst : (n_groups,) float64 — the largest sample (mm), 0 without samples
+    total : (n_groups,) float64 — the sum of the samples (mm)
+    count : (n_groups,) int64 — the number of samples
+    """
+    n = s.n_vertices
+    a, r = _positions(after, n, "after"), _positions(rest, n, "rest")
+    g = np.ascontiguousarray(groups, np.int32)
+    if g.shape != (s.n_faces, 2) or (g.size and g.max() >= n_groups):
+        raise AnatomeshError(f"groups must be ({s.n_faces}, 2) ints below {n_groups}, "
+                             f"got shape {g.shape}")
+    worst, total = np.zeros(n_groups), np.zeros(n_groups)
+    count = np.zeros(n_groups, np.int64)
+    _k.grouped_distances(a, r, s.faces, s.vf_offsets, s.vf, g, worst, total, count)
+    return worst, total, count

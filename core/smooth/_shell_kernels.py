@@ -111,62 +111,6 @@ def faces_by_label(sides, labels):
     return faces, starts
 
 
-@njit(parallel=True, cache=True)
-def label_distances(sides, vf_offsets, vf, at_vertices, at_centroids, worst, total, count):
-    """Add one direction's samples to each label's worst, sum and count: every vertex once per
-    label around it (its nearest incident face of that label, ``at_vertices`` per vertex →
-    faces entry) and every face centroid once per label on its sides. In 16 parts (parallel),
-    each with its own sums, merged at the end."""
-    parts, n, m, r = 16, vf_offsets.shape[0] - 1, sides.shape[0], worst.shape[0]
-    w, s, c = np.zeros((parts, r)), np.zeros((parts, r)), np.zeros((parts, r), np.int64)
-    for p in prange(parts):
-        labels, best = np.empty(64, np.int64), np.empty(64)
-        for i in range(p * n // parts, (p + 1) * n // parts):
-            _vertex_samples(i, sides, vf_offsets, vf, at_vertices, labels, best, w[p], s[p], c[p])
-        for f in range(p * m // parts, (p + 1) * m // parts):
-            for side in range(2):
-                if sides[f, side] >= 0:
-                    _add(sides[f, side], at_centroids[f], w[p], s[p], c[p])
-    for p in range(parts):
-        for k in range(r):
-            worst[k] = max(worst[k], w[p, k])
-            total[k] += s[p, k]
-            count[k] += c[p, k]
-
-
-@njit(cache=True, inline="always")
-def _vertex_samples(i, sides, vf_offsets, vf, at_vertices, labels, best, worst, total, count):
-    """Vertex i's sample for each label around it: its nearest incident face of that label."""
-    n = 0
-    for t in range(vf_offsets[i], vf_offsets[i + 1]):
-        f = vf[t]
-        for side in range(2):
-            k = sides[f, side]
-            if k < 0:
-                continue
-            j = 0
-            while j < n and labels[j] != k:
-                j += 1
-            if j == n:
-                if n == 64:
-                    continue
-                labels[n] = k
-                best[n] = at_vertices[t]
-                n += 1
-            elif at_vertices[t] < best[j]:
-                best[j] = at_vertices[t]
-    for j in range(n):
-        _add(labels[j], best[j], worst, total, count)
-
-
-@njit(cache=True, inline="always")
-def _add(k, d, worst, total, count):
-    if d > worst[k]:
-        worst[k] = d
-    total[k] += d
-    count[k] += 1
-
-
 @njit(cache=True)
 def _around(faces, vf_offsets, vf, a, spoke, sign, parent):
     """Edges and fans at vertex a: ``(edges (a, b > a), one face, > 2 faces, 2 faces used in

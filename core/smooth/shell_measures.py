@@ -9,9 +9,9 @@ volumes, topology) is computed once, so measuring again after another smoothing 
 passes. Distances are sampled at vertices and face centroids in both directions, each sample
 measured to the faces around it in the other surface (a vertex: its faces; a centroid: its face
 and the three across its edges)
-(:func:`anatomesh.core.geometry.local_distance.local_distances`): upper bounds of the
-nearest-triangle distances, equal to them wherever the nearest point lies on those faces (the
-samples are stored in float32: within 1e-7 of them, relative).
+(:func:`anatomesh.core.geometry.local_distance.distances_by_group`): upper bounds of the
+nearest-triangle distances, equal to them wherever the nearest point lies on those faces, reduced
+per label as they are measured (no per-sample arrays).
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from . import _shell_kernels as _k
-from ..geometry.local_distance import edge_neighbours, local_distances
+from ..geometry.local_distance import distances_by_group
 from ..geometry.kernels import union_find_roots
 from ..geometry.neighbors import MeshStructure, vertex_faces
 from ..model.mesh import Mesh
@@ -67,7 +67,6 @@ class ShellMeasures:
         self.before = self._sums(rest)[0]
         self._topology: Optional[List[dict]] = None
         self._by_label: Optional[Tuple[np.ndarray, np.ndarray]] = None
-        self._near: Optional[np.ndarray] = None
 
     def _sums(self, pos: np.ndarray, angles: bool = False) -> Tuple[np.ndarray, np.ndarray]:
         """The per-label sums (L, 7) float64 of the face measures at ``pos`` (rows: see
@@ -149,17 +148,7 @@ class ShellMeasures:
 
     def _distances(self, after: np.ndarray):
         """Per label: the worst sample, the sum of samples and their count, both directions."""
-        worst, total = np.zeros(len(self.values)), np.zeros(len(self.values))
-        count = np.zeros(len(self.values), np.int64)
-        if self._near is None:
-            self._near = edge_neighbours(self.s)
-        for a, b in ((after, self.rest), (self.rest, after)):
-            # memory: float32 samples (1e-7 relative; the sums and maxima in float64)
-            at_vertices, at_centroids = local_distances(a, b, self.s, self._near, np.float32)
-            _k.label_distances(self.sides, self.s.vf_offsets, self.s.vf, at_vertices,
-                               at_centroids, worst, total, count)
-            del at_vertices, at_centroids  # memory: one direction's samples at a time
-        return worst, total, count
+        return distances_by_group(after, self.rest, self.s, self.sides, len(self.values))
 
 
 def shell_topology(shells: List[Mesh], degenerate: np.ndarray) -> List[dict]:
