@@ -77,16 +77,23 @@ def label_sums(sides, table, signed, out):
 
 
 @njit(cache=True)
-def label_max(sides, faces, values, out):
-    """``out[k]``: the largest of ``values`` (N,) over the corners of the faces with label
-    index k on a side."""
+def label_max_displacement(sides, faces, after, rest, out):
+    """``out[k]``: the largest displacement (mm) from ``rest`` to ``after`` (N, 3) float64 of a
+    corner of the faces with label index k on a side (memory: no (N,) table)."""
     out[:] = 0.0
     for f in range(sides.shape[0]):
-        x = max(values[faces[f, 0]], max(values[faces[f, 1]], values[faces[f, 2]]))
+        x = max(_moved(after, rest, faces[f, 0]),
+                max(_moved(after, rest, faces[f, 1]), _moved(after, rest, faces[f, 2])))
         for side in range(2):
             k = sides[f, side]
             if k >= 0 and x > out[k]:
                 out[k] = x
+
+
+@njit(cache=True, inline="always")
+def _moved(after, rest, i):
+    dx, dy, dz = after[i, 0] - rest[i, 0], after[i, 1] - rest[i, 1], after[i, 2] - rest[i, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 @njit(cache=True)

@@ -26,7 +26,8 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     :func:`~anatomesh.core.smooth.prepare.umbrella` passes (differences ~1e-13 mm in float64
     from the order of operations; ~1e-4 mm in float32, the precision Blender stores positions
     in). ``keep_buffers=False`` (one-shot runs, memory): the neighbourhood CSR is freed once
-    its padded columns exist, the columns and buffers before the result is allocated."""
+    its padded columns exist (and the structure's 1-ring: rebuilt if used again), the columns
+    and buffers before the result is allocated."""
     v = np.asarray(vertices)
     if v.ndim != 2 or v.shape[1] != 3:
         raise AnatomeshError(f"vertices must be an (N, 3) array of positions in mm, got shape {v.shape}")
@@ -42,9 +43,10 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     else:
         offsets, nbr, _ = s.feature_ring(face_groups)
     ring = s.padded(offsets, nbr, _k.PAD_WIDTH, dt, _k.EXT_WIDTH)
-    if not keep_buffers:  # memory: the feature ring's CSR is not needed once padded
+    if not keep_buffers:  # memory: the ring's CSR and the 1-ring are not needed once padded
         del offsets, nbr
         s.release_buffers()
+        s.release_ring()
     g = check_gain(gain, n)
     c = constraint or Constraint()
     kind, center, frame, frame_inv, radius, start = c.arrays(v)

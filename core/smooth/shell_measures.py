@@ -101,7 +101,7 @@ class ShellMeasures:
         angles = self._angle_stats(angle)
         del angle  # memory: the distances below need their own per-face samples
         worst_disp = np.empty(len(self.values))
-        _k.label_max(self.sides, self.s.faces, np.linalg.norm(after - self.rest, axis=1), worst_disp)
+        _k.label_max_displacement(self.sides, self.s.faces, after, self.rest, worst_disp)
         dist = self._distances(after) if distances else None
         out = {}
         topologies = self.topology_before() if topology else \

@@ -102,5 +102,6 @@ def faces_around(s: MeshStructure, vertices: np.ndarray) -> np.ndarray:
 
 
 def one_ring_of(s: MeshStructure, seeds: np.ndarray) -> np.ndarray:
-    """``seeds`` and every vertex sharing an edge with one of them, sorted, unique."""
-    return np.unique(np.concatenate([seeds, rows_of(s.ring_offsets, s.ring, seeds)]))
+    """``seeds`` and every vertex sharing an edge with one of them (the corners of their
+    faces: no 1-ring needed), sorted, unique."""
+    return np.unique(np.concatenate([seeds, s.faces[rows_of(s.vf_offsets, s.vf, seeds)].ravel()]))

@@ -59,14 +59,15 @@ def test_a_one_shot_run_frees_each_steps_caches_and_gives_the_same_surfaces(map4
     assert not [k for k in session._cache if isinstance(k, tuple) and k[0] == "cell"]
     s = session.structure
     assert not s._padded and not s._buffers and not s._feature
+    assert s._ring is None  # a label map's one-shot run needs its 1-ring only for the passes
     again, _ = session.smooth("organ")  # rebuilt on demand
     np.testing.assert_array_equal(again.vertices, kept.vertices)
 
 
 def test_passes_that_keep_no_buffers_give_the_same_positions_and_leave_none(map41):
     """taubin(keep_buffers=False), as a one-shot run calls it: bit for bit the positions of the
-    default call, and the structure keeps no padded columns, feature rings or buffers (the
-    rings are freed before the passes run, the buffers before the result is made)."""
+    default call, and the structure keeps no padded columns, feature rings, buffers or 1-ring
+    (the rings are freed before the passes run, the buffers before the result is made)."""
     from anatomesh.core.geometry.neighbors import MeshStructure
     from anatomesh.core.smooth.filters import taubin
     from anatomesh.core.smooth.session import face_groups_of
@@ -79,7 +80,7 @@ def test_passes_that_keep_no_buffers_give_the_same_positions_and_leave_none(map4
     got = taubin(map41.vertices, map41.faces, structure=s, face_groups=groups,
                  keep_buffers=False)
     np.testing.assert_array_equal(got, want)
-    assert not s._padded and not s._buffers and not s._feature
+    assert not s._padded and not s._buffers and not s._feature and s._ring is None
 
 
 def test_the_report_sums_faces_a_block_at_a_time_and_the_block_changes_nothing(map61, monkeypatch):
@@ -175,3 +176,23 @@ def test_independent_surfaces_get_voxel_boxes_and_volumes_per_component():
     kept, rep_kept = session.smooth(untangle=False, distances=False)
     np.testing.assert_array_equal(alone.vertices, kept.vertices[:bone.n_vertices])
     assert rep_kept.shells[250] == rep_alone.shells[250]
+
+
+def test_a_one_shot_run_of_independent_surfaces_builds_its_one_ring_once(monkeypatch):
+    """Isosurfaces in a one-shot run: the volume regions (closed components, which need the
+    1-ring) are made before the filter frees the 1-ring, so it is built once; the result is
+    the kept session's bit for bit."""
+    from anatomesh.core.extract import isosurface
+    from anatomesh.core.geometry import neighbors
+
+    vol = load(shared("totalsegmentator", "example_ct.nii.gz"))
+    surfaces = SurfaceSet.from_meshes([isosurface(vol, 250.0)], vol.affine)
+    kept, _ = SmoothingSession(surfaces).run("organ")
+    built = []
+    one_ring = neighbors._k.one_ring
+    monkeypatch.setattr(neighbors._k, "one_ring", lambda *a: built.append(1) or one_ring(*a))
+    neighbors.clear_cache()  # a structure of its own, not the kept session's
+    session = SmoothingSession(surfaces)
+    once, _ = session.run("organ", keep=False)
+    np.testing.assert_array_equal(once, kept)
+    assert len(built) == 1 and session.structure._ring is None

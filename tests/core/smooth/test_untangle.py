@@ -132,3 +132,19 @@ def test_untangling_leaves_no_folded_faces_on_the_chest_ct_bone():
                         np.linalg.inv(vol.affine[:3, :3]))
     boxes = FaceBoxes(raw.faces, centres, (0.5, 0.5, 0.5))
     assert len(boxes.crossings(sm.vertices)) == 0
+
+
+def test_the_one_ring_of_seeds_needs_no_one_ring(smoothed_sample):
+    """one_ring_of takes the corners of the seeds' faces: the same vertices as the 1-ring
+    CSR's rows (which a one-shot run has freed), and the structure builds no 1-ring for it."""
+    from anatomesh.core.geometry.neighbors import MeshStructure
+    from anatomesh.core.smooth.untangle import one_ring_of, rows_of
+
+    raw = smoothed_sample[0]
+    s = MeshStructure(raw.faces, raw.n_vertices)
+    seeds = np.random.default_rng(5).choice(raw.n_vertices, 300, replace=False)
+    got = one_ring_of(s, seeds)
+    assert s._ring is None
+    want = np.unique(np.concatenate([seeds, rows_of(s.ring_offsets, s.ring, seeds)]))
+    np.testing.assert_array_equal(got, want)
+    assert len(got) > 5 * len(seeds)
