@@ -236,6 +236,33 @@ def _mark_features(i, faces, offsets, nbr, vf_offsets, vf, face_group, count, fi
     return n
 
 
+@njit(parallel=True, cache=True)
+def open_vertices(faces, vf_offsets, vf):
+    """(N,) bool: the vertices with an edge that has one incident face (an open boundary) or
+    more than two (a non-manifold pinch) — those :func:`feature_rings` gives a kind != 0 with
+    no groups — from the vertex → faces CSR alone (no 1-ring)."""
+    n = vf_offsets.shape[0] - 1
+    out = np.zeros(n, np.bool_)
+    for i in prange(n):
+        for t in range(vf_offsets[i], vf_offsets[i + 1]):
+            for c in range(3):
+                j = faces[vf[t], c]
+                if j != i and not out[i] and _faces_on_edge(faces, vf_offsets, vf, i, j) != 2:
+                    out[i] = True
+    return out
+
+
+@njit(cache=True, inline="always")
+def _faces_on_edge(faces, vf_offsets, vf, i, j):
+    """How many faces around vertex i have j as a corner (a degenerate face once)."""
+    n = 0
+    for t in range(vf_offsets[i], vf_offsets[i + 1]):
+        g = vf[t]
+        if faces[g, 0] == j or faces[g, 1] == j or faces[g, 2] == j:
+            n += 1
+    return n
+
+
 @njit(cache=True)
 def components(offsets, nbr):
     """Connected components of the 1-ring graph: (n,) int64 labels 0..C-1 in order of first

@@ -141,6 +141,12 @@ class MeshStructure:
             self._components = _k.components(self.ring_offsets, self.ring)
         return self._components
 
+    def open_vertices(self) -> np.ndarray:
+        """(N,) bool: vertices with an edge that has one face (an open boundary) or more than
+        two (non-manifold), :meth:`feature_ring`'s ``kind != 0`` without groups, with no ring
+        built."""
+        return _k.open_vertices(self.faces, self.vf_offsets, self.vf)
+
     def two_ring(self) -> CSR:
         """2-ring CSR (neighbours and their neighbours, not the vertex itself); cached."""
         if self._two_ring is None:

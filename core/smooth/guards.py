@@ -107,19 +107,25 @@ class VolumeRegions:
         self.inside = _region_ids(sides[:, 0], self.free)
         self.outside = _region_ids(sides[:, 1], self.free)
         self.touching = bool(np.any((self.inside >= 0) & (self.outside >= 0)))
-        m = faces.shape[0]
-        self.areas, self.tet = np.empty(m), np.empty(m)
+        self.areas: Optional[np.ndarray] = None  # per-face working buffers, made on use
+        self.tet: Optional[np.ndarray] = None
         self.between = np.zeros((self.r, self.r) if self.touching else (1, 1))
 
     def volumes(self, pos: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """``(volume (R,) mm³, shell area (R,) mm²)`` of every region at float64 ``pos``; fills
         the face normals and areas, and the areas shared by two regions (``between``)."""
         origin = pos[0] if len(pos) else np.zeros(3)
+        if self.areas is None:
+            self.areas, self.tet = np.empty(self.faces.shape[0]), np.empty(self.faces.shape[0])
         _gk.face_terms(pos, self.faces, origin, self.areas, self.tet)
         volume, diag = np.zeros(self.r), np.zeros(self.r)
         _gk.region_terms(self.inside, self.outside, self.areas, self.tet, volume, diag,
                          self.between, self.touching)
         return volume, diag
+
+    def release_buffers(self) -> None:
+        """Drop the per-face working buffers (16 bytes a face; made again by :meth:`volumes`)."""
+        self.areas = self.tet = None
 
     def offsets(self, pos: np.ndarray) -> np.ndarray:
         """The offset λ (R + 1,) of every region (last: background, 0) that restores the
@@ -209,8 +215,7 @@ def component_regions(s: MeshStructure):
     vlab = s.components()
     flab = vlab[s.faces[:, 0]] if s.n_faces else np.zeros(0, np.int64)
     n = int(vlab.max()) + 1 if vlab.size else 0
-    _, _, kind = s.feature_ring(None)  # kind != 0: the vertex has an edge without two faces
     closed = np.ones(n, bool)
-    closed[np.unique(vlab[kind != 0])] = False
+    closed[np.unique(vlab[s.open_vertices()])] = False
     comp = np.where(closed[flab], flab, -1).astype(np.int32)
     return np.stack([comp, np.full_like(comp, -1)], axis=1), n

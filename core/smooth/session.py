@@ -133,6 +133,7 @@ class SmoothingSession:
             sides, n = component_regions(self.structure)
         regions = VolumeRegions(self.structure.faces, sides, np.zeros(n))
         regions.targets = regions.volumes(self.rest)[0]
+        regions.release_buffers()  # memory: made before the filter in one-shot runs
         return regions
 
     def constraint(self, constraint, max_deviation: Optional[float]) -> Optional[Constraint]:
