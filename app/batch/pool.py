@@ -24,6 +24,7 @@ import time
 from multiprocessing.connection import wait
 from typing import Callable, Deque, Dict, Iterator, List, Optional
 
+from ...core.model.memory import return_large_blocks
 from .worker import StudyTask, run_study
 
 #: how often (seconds) a worker sends a study's progress at most
@@ -157,6 +158,7 @@ def worker_main(conn, func: Callable, threads: int) -> None:
     """A worker process: run the studies sent over ``conn`` until it closes."""
     _die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    return_large_blocks()  # memory: freed arrays go back to the system at once
     try:
         import numba
 
