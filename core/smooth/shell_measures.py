@@ -32,7 +32,7 @@ _TOPO_KEYS = ("components", "genus", "closed", "manifold", "oriented", "degenera
 #: smallest angle, angle below 10°, 1 (the face count); True: negated on the outside label
 _SIGNED = np.array([False, True, False, False, False, False, False])
 #: faces measured at a time (memory: a (7, block) table, not (7, M))
-_BLOCK = 1 << 18
+_BLOCK = 1 << 16
 
 
 def label_sides(surfaces: SurfaceSet) -> Tuple[np.ndarray, List[int]]:
