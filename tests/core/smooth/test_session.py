@@ -85,11 +85,11 @@ def test_passes_that_keep_no_buffers_give_the_same_positions_and_leave_none(map4
 
 def test_the_report_sums_faces_a_block_at_a_time_and_the_block_changes_nothing(map61, monkeypatch):
     """The per-shell measures are summed in face order, a block of faces at a time (memory):
-    the 61-label map's (404 k faces, seven blocks) are the same bit for bit with blocks of 999
+    the 61-label map's (381 k faces, six blocks) are the same bit for bit with blocks of 999
     faces."""
     from anatomesh.core.smooth import shell_measures
 
-    assert map61.n_faces > 6 * shell_measures._BLOCK  # seven blocks by default
+    assert map61.n_faces > 5 * shell_measures._BLOCK  # six blocks by default
     vertices, _ = SmoothingSession(map61).run("organ", keep=False)
     want, _ = SmoothingSession(map61).measure(vertices)
     monkeypatch.setattr(shell_measures, "_BLOCK", 999)
