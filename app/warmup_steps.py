@@ -70,10 +70,13 @@ def _reading(folder: Path) -> None:
 
 def _label_surfaces(folder: Path) -> None:
     """A uint8 label map's surfaces extracted and split into shells (no file: the lanes start
-    compiling without importing and running a reader first)."""
+    compiling without importing and running a reader first), in Fortran order too (as NIfTI
+    readers give the voxels: the lattice's columns put back in place)."""
     from ..core.extract.multilabel import label_surfaces
 
-    label_surfaces(_label_map(np.uint8), affine=np.diag([1.0, 1.0, 2.5, 1.0])).shells()
+    labels = _label_map(np.uint8)
+    label_surfaces(labels, affine=np.diag([1.0, 1.0, 2.5, 1.0])).shells()
+    label_surfaces(np.asfortranarray(labels))
 
 
 def _isosurfaces(folder: Path) -> None:

@@ -66,21 +66,36 @@ def bounding_box(data, bg, lut, use_lut, box, out):
             out[5] = max(out[5], box[i, 3])
 
 
-@njit(cache=True)
-def crop_pad(data, i0, j0, k0, lut, use_lut, out):
-    """``out[1:-1, 1:-1, 1:-1] = data[i0:, j0:, k0:]``, through ``lut`` when ``use_lut``; the
-    border of ``out`` must be pre-filled with the background."""
+@njit(parallel=True, cache=True)
+def crop_pad(data, i0, j0, k0, lut, use_lut, bg, out):
+    """``out[1:-1, 1:-1, 1:-1] = data[i0:, j0:, k0:]``, through ``lut`` when ``use_lut``, and
+    the border of ``out`` (one voxel) set to ``bg`` (of out's dtype); planes in parallel, so
+    ``out`` can come from ``np.empty`` (its pages first touched here, by both threads)."""
     n0, n1, n2 = out.shape
-    for i in range(1, n0 - 1):
-        for j in range(1, n1 - 1):
-            src = data[i0 + i - 1, j0 + j - 1]
+    for p in prange(n0):
+        i = np.int64(p)  # prange's index is unsigned
+        for j in range(n1):
             dst = out[i, j]
+            if i == 0 or i == n0 - 1 or j == 0 or j == n1 - 1:
+                for k in range(n2):
+                    dst[k] = bg
+                continue
+            dst[0], dst[n2 - 1] = bg, bg
+            src = data[i0 + i - 1, j0 + j - 1]
             if use_lut:
                 for k in range(1, n2 - 1):
                     dst[k] = lut[src[k0 + k - 1]]
             else:  # a loop, not a slice copy: numba compiles a slice copy's shape checks and
                 for k in range(1, n2 - 1):  # their error messages, seconds of first-run time
                     dst[k] = src[k0 + k - 1]
+
+
+@njit(parallel=True, cache=True)
+def permute_columns(a, order):
+    """``a[:] = a[:, order]`` for an (N, 3) array, in place (no copy), rows in parallel."""
+    for r in prange(a.shape[0]):
+        x, y, z = a[r, order[0]], a[r, order[1]], a[r, order[2]]
+        a[r, 0], a[r, 1], a[r, 2] = x, y, z
 
 
 # ---------------------------------------------------------------------------------------------

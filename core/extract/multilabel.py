@@ -92,7 +92,8 @@ def label_surfaces(volume_or_array: Union[Volume, np.ndarray],
     report(progress, 0.9, "counting voxels")
     counts = np.zeros(top + 1, np.int64)
     K.voxel_counts(faces, face_labels, lattice, flip, counts)
-    lattice = np.ascontiguousarray(lattice[:, np.argsort(axes)])  # back to the volume's (i, j, k)
+    if np.any(axes != np.arange(3)):  # back to the volume's (i, j, k), in place
+        K.permute_columns(lattice, np.argsort(axes))
     present = [int(v) for v in np.flatnonzero(counts > 0) if v != bg]
     missing = [v for v in (wanted or []) if v not in set(present)]
     if missing:
@@ -125,9 +126,9 @@ def _crop(data: np.ndarray, bg: int, wanted: Optional[List[int]]):
     if box[0] > box[1]:
         return np.full((3, 3, 3), bg, dtype), np.zeros(3, np.int64), top
     lo, hi = box[0::2], box[1::2]
-    P = np.full(tuple(int(h - l + 3) for l, h in zip(lo, hi)), bg, dtype)
+    P = np.empty(tuple(int(h - l + 3) for l, h in zip(lo, hi)), dtype)  # crop_pad fills all
     lut = np.where(select > 0, np.arange(select.size), bg).astype(dtype)
-    K.crop_pad(data, int(lo[0]), int(lo[1]), int(lo[2]), lut, wanted is not None, P)
+    K.crop_pad(data, int(lo[0]), int(lo[1]), int(lo[2]), lut, wanted is not None, dtype(bg), P)
     return P, lo, top
 
 

@@ -1,7 +1,7 @@
 """Numba kernels for :class:`anatomesh.core.model.surfaceset.SurfaceSet` shell views (private)."""
 from __future__ import annotations
 
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -74,3 +74,13 @@ def shell(faces, entries, split_rows, split_copy, mark, out, ids):
     for u in range(nv):
         mark[ids[u]] = -1
     return nv
+
+
+@njit(parallel=True, cache=True)
+def mark_present(face_labels, seen):
+    """``seen[v] = True`` for every value v in ``face_labels`` (M, 2), all in [0, len(seen)):
+    which label values have faces, with no int64 copy of the labels (what ``np.bincount``
+    makes). Threads may set the same flag: they all write True."""
+    for f in prange(face_labels.shape[0]):
+        seen[face_labels[f, 0]] = True
+        seen[face_labels[f, 1]] = True

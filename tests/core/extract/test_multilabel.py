@@ -265,10 +265,12 @@ def test_memory_order_does_not_change_the_surface():
     A = _affines()["oblique"]
     c = label_surfaces(np.ascontiguousarray(a), affine=A)
     f = label_surfaces(np.asfortranarray(a), affine=A)
-    check_shells(f, a, A)
-    assert _same_triangles(c.vertices, c.faces, f.vertices, f.faces)
-    expect = (f.lattice - 0.5) @ A[:3, :3].T + A[:3, 3]
-    np.testing.assert_allclose(f.vertices, expect, atol=1e-4)
+    odd = label_surfaces(a.transpose(1, 2, 0).copy().transpose(2, 0, 1), affine=A)  # a 3-cycle
+    for s in (f, odd):
+        check_shells(s, a, A)
+        assert _same_triangles(c.vertices, c.faces, s.vertices, s.faces)
+        expect = (s.lattice - 0.5) @ A[:3, :3].T + A[:3, 3]  # lattice in the volume's (i, j, k)
+        np.testing.assert_allclose(s.vertices, expect, atol=1e-4)
 
 
 def test_output_does_not_depend_on_thread_count(monkeypatch):

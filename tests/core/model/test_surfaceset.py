@@ -1,5 +1,9 @@
-"""SurfaceSet.from_meshes: independent surfaces as one set, each shell giving its mesh back."""
+"""SurfaceSet: independent surfaces as one set (from_meshes), each shell giving its mesh back; the
+label values with faces."""
+import dataclasses
+
 import numpy as np
+import pytest
 from helpers.meshes import icosphere, torus
 
 from anatomesh.core.geometry.topology import topology
@@ -47,3 +51,21 @@ def test_from_meshes_stacks_int32_faces_without_transient_copies():
     np.testing.assert_array_equal(s.face_labels[:, 0], np.repeat([1, 2], [len(sf), len(tf)]))
     assert not s.face_labels[:, 1].any()
     assert peak <= kept + (1 << 16), (peak, kept)
+
+
+def test_values_are_the_labels_with_faces():
+    """The 61-label map's set: the label values on the faces' sides but the background, as
+    np.unique finds them; a label absent from the faces is not listed; negative labels are
+    refused."""
+    from anatomesh.core import label_surfaces, load
+    from anatomesh.core.model.errors import AnatomeshError
+    from conftest import shared
+
+    s = label_surfaces(load(shared("totalsegmentator", "example_seg_fast_force_split.nii.gz")))
+    want = [int(v) for v in np.unique(s.face_labels) if v != s.background]
+    assert s.values() == want and len(want) == 61
+    fewer = dataclasses.replace(s, face_labels=np.where(s.face_labels == want[3], 0,
+                                                        s.face_labels))
+    assert fewer.values() == want[:3] + want[4:]
+    with pytest.raises(AnatomeshError, match="non-negative"):
+        dataclasses.replace(s, face_labels=-s.face_labels).values()
