@@ -28,10 +28,7 @@ def centroid_distances(points, vertices, faces, near, out):
     """``out[f]``: distance from the centroid of face f with corners from ``points`` to face f
     and the faces ``near[f]`` (entries < 0 skipped) with corners from ``vertices``."""
     for f in prange(faces.shape[0]):
-        a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-        px = (points[a, 0] + points[b, 0] + points[c, 0]) / 3.0
-        py = (points[a, 1] + points[b, 1] + points[c, 1]) / 3.0
-        pz = (points[a, 2] + points[b, 2] + points[c, 2]) / 3.0
+        px, py, pz = _centroid(points, faces, f)
         d = _distance(px, py, pz, vertices, faces, f)
         for k in range(near.shape[1]):
             g = near[f, k]
