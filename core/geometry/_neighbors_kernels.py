@@ -264,30 +264,27 @@ def _faces_on_edge(faces, vf_offsets, vf, i, j):
 
 
 @njit(cache=True)
-def components(offsets, nbr):
-    """Connected components of the 1-ring graph: (n,) int64 labels 0..C-1 in order of first
-    vertex, by breadth-first search. Isolated vertices get their own label."""
-    n = offsets.shape[0] - 1
-    label = np.full(n, -1, np.int64)
-    queue = np.empty(n, np.int64)
+def components(faces, n):
+    """Connected components of the mesh's edge graph (n vertices): (n,) int64 labels 0..C-1 in
+    order of first vertex, by union-find over the faces' edges (no 1-ring: the root kept is a
+    component's smallest vertex). Isolated vertices get their own label."""
+    parent = np.arange(n)
+    for f in range(faces.shape[0]):
+        for c in range(2):
+            ra, rb = find_root(parent, faces[f, c]), find_root(parent, faces[f, c + 1])
+            if ra < rb:
+                parent[rb] = ra
+            elif rb < ra:
+                parent[ra] = rb
+    label = np.empty(n, np.int64)
     c = 0
-    for s in range(n):
-        if label[s] >= 0:
-            continue
-        label[s] = c
-        head = 0
-        tail = 1
-        queue[0] = s
-        while head < tail:
-            i = queue[head]
-            head += 1
-            for a in range(offsets[i], offsets[i + 1]):
-                j = nbr[a]
-                if label[j] < 0:
-                    label[j] = c
-                    queue[tail] = j
-                    tail += 1
-        c += 1
+    for x in range(n):
+        r = find_root(parent, x)
+        if r == x:  # the component's first vertex
+            label[x] = c
+            c += 1
+        else:
+            label[x] = label[r]
     return label
 
 

@@ -138,7 +138,7 @@ class MeshStructure:
         """Connected component of each vertex through edges, (N,) int64 (unused vertices get
         their own component); cached."""
         if self._components is None:
-            self._components = _k.components(self.ring_offsets, self.ring)
+            self._components = _k.components(self.faces, np.int64(self.n_vertices))
         return self._components
 
     def open_vertices(self) -> np.ndarray:

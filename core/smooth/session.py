@@ -220,8 +220,6 @@ class SmoothingSession:
         kw = self._filter_args(name, p, c, junctions, staircase, damping_distance, precision)
         kw["progress"] = sub(progress, 0.0, 0.9) if preserve else progress
         cons = (c.anchored(self.rest) if c is not None else Constraint()).arrays(self.rest)
-        if preserve and not keep and not self.has_lattice:
-            self.regions()  # its components need the 1-ring, which a one-shot filter frees
         # the filtered positions go straight to the guards, which drop them when done (memory)
         out, extra, warnings = self._guards(self._filtered(name, kw, cons, keep), c, cons,
                                             kw.get("gain"), preserve, fold_guard, untangle,

@@ -179,9 +179,9 @@ def test_independent_surfaces_get_voxel_boxes_and_volumes_per_component():
 
 
 def test_a_one_shot_run_of_independent_surfaces_builds_its_one_ring_once(monkeypatch):
-    """Isosurfaces in a one-shot run: the volume regions (closed components, which need the
-    1-ring) are made before the filter frees the 1-ring, so it is built once; the result is
-    the kept session's bit for bit."""
+    """Isosurfaces in a one-shot run: the volume regions (closed components, found from the
+    faces) need no 1-ring after the filter frees it, so it is built once; the result is the
+    kept session's bit for bit."""
     from anatomesh.core.extract import isosurface
     from anatomesh.core.geometry import neighbors
 
