@@ -11,6 +11,8 @@
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -466,28 +468,50 @@ def _welded(X, faces, a, b):
     return False
 
 
+#: face boxes are stored as 16-bit steps of a frame over the positions (12 bytes a face)
+BOX_STEPS = 65535
+
+
+@njit(cache=True, inline="always")
+def _steps(x, origin, scale):
+    """(x − origin) · scale, the position in box steps (monotone in x)."""
+    return (x - origin) * scale
+
+
+@njit(cache=True, inline="always")
+def _box_of(X, faces, f, k, origin, scale, box):
+    """Box of face f into row k: the steps of its corners' min (rounded down) and max (rounded
+    up), clamped to [0, BOX_STEPS]. Monotone roundings of one monotone map: boxes that overlap
+    in mm still overlap in steps (a pair is never wrongly taken apart), whatever the frame."""
+    for c in range(3):
+        x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
+        lo = math.floor(_steps(min(x0, min(x1, x2)), origin[c], scale[c]))
+        hi = math.ceil(_steps(max(x0, max(x1, x2)), origin[c], scale[c]))
+        box[k, c] = min(max(lo, 0.0), BOX_STEPS)
+        box[k, 3 + c] = min(max(hi, 0.0), BOX_STEPS)
+
+
 @njit(parallel=True, cache=True)
-def face_boxes(X, faces, fid, box):
-    """Bounding box of the face of every bucket row (``fid``) into ``box`` (M, 6) float32: min
-    xyz, max xyz, rounded outwards (a box only grows: a pair is never wrongly taken apart)."""
+def face_boxes(X, faces, fid, origin, scale, box):
+    """Bounding box of the face of every bucket row (``fid``) into ``box`` (M, 6) uint16: min
+    xyz, max xyz in steps of a frame spanning ``X`` (N ≥ 1, 3), rounded outwards (see
+    :func:`_box_of`). The frame is written into ``origin`` (3,) float64 (mm, the least
+    coordinates) and ``scale`` (3,) float64 (steps per mm) for :func:`face_boxes_of`."""
+    for c in range(3):
+        lo, hi = X[0, c], X[0, c]
+        for i in range(1, X.shape[0]):
+            lo, hi = min(lo, X[i, c]), max(hi, X[i, c])
+        origin[c] = lo
+        scale[c] = BOX_STEPS / (np.float64(hi) - lo) if hi > lo else 0.0
     for k in prange(fid.shape[0]):
-        f = fid[k]
-        for c in range(3):
-            x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[k, c] = _down32(min(x0, min(x1, x2)))
-            box[k, 3 + c] = _up32(max(x0, max(x1, x2)))
+        _box_of(X, faces, fid[k], k, origin, scale, box)
 
 
 @njit(parallel=True, cache=True)
-def face_boxes_of(X, faces, fid, rows, box):
+def face_boxes_of(X, faces, fid, rows, origin, scale, box):
     """:func:`face_boxes` for the bucket rows ``rows`` only."""
     for i in prange(rows.shape[0]):
-        k = rows[i]
-        f = fid[k]
-        for c in range(3):
-            x0, x1, x2 = X[faces[f, 0], c], X[faces[f, 1], c], X[faces[f, 2], c]
-            box[k, c] = _down32(min(x0, min(x1, x2)))
-            box[k, 3 + c] = _up32(max(x0, max(x1, x2)))
+        _box_of(X, faces, fid[rows[i]], rows[i], origin, scale, box)
 
 
 @njit(cache=True, inline="always")
@@ -499,14 +523,28 @@ def _boxes_apart(box, a, b):
     return False
 
 
+@njit(cache=True, inline="always")
+def _apart_at(X, faces, p, q):
+    """The closed boxes of faces p and q at positions X, rounded outwards to float32, do not
+    overlap: the exact test behind the 16-bit boxes, which only tell faces surely apart."""
+    for c in range(3):
+        lo_p = _down32(min(X[faces[p, 0], c], min(X[faces[p, 1], c], X[faces[p, 2], c])))
+        hi_p = _up32(max(X[faces[p, 0], c], max(X[faces[p, 1], c], X[faces[p, 2], c])))
+        lo_q = _down32(min(X[faces[q, 0], c], min(X[faces[q, 1], c], X[faces[q, 2], c])))
+        hi_q = _up32(max(X[faces[q, 0], c], max(X[faces[q, 1], c], X[faces[q, 2], c])))
+        if max(lo_p, lo_q) > min(hi_p, hi_q):
+            return True
+    return False
+
+
 @njit(cache=True)
 def _cross_rest(X, faces, fid, k, k2, rel_eps):
-    """Bucket rows k and k2 (closed boxes overlapping, no shared corner) cross at positions X:
-    no corner at the same position, Möller's test with the smaller face id first (as the grid
-    search orders them). Called only after the cheap checks, written inline in the loops (numba
-    compiles those tighter than a helper)."""
+    """Bucket rows k and k2 (16-bit boxes overlapping, no shared corner) cross at positions X:
+    closed boxes overlapping (:func:`_apart_at`), no corner at the same position, Möller's test
+    with the smaller face id first (as the grid search orders them). Called only after the
+    cheap checks, written inline in the loops (numba compiles those tighter than a helper)."""
     p, q = np.int64(fid[k]), np.int64(fid[k2])
-    if _welded(X, faces, p, q):
+    if _apart_at(X, faces, p, q) or _welded(X, faces, p, q):
         return False
     if q < p:
         p, q = q, p

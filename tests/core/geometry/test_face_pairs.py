@@ -122,6 +122,26 @@ def test_candidate_pairs_find_every_crossing_of_vertices_jittered_in_their_cells
     assert found > 100  # jittered sheets do cross: the test can fail
 
 
+def test_faces_a_hair_apart_do_not_cross_although_their_16_bit_boxes_overlap():
+    """The stored face boxes are 16-bit steps of the positions' span (~0.005 mm over 300 mm):
+    two parallel triangles 1e-9 mm apart share a step, and Möller's tolerance calls them
+    touching, but their exact boxes are apart: no crossing, as for the search over all faces.
+    The same triangles in one plane do cross (touching counts)."""
+    tri = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    far = tri + 300.0  # a third face: the positions span 300 mm
+    faces = np.arange(9, dtype=np.int32).reshape(3, 3)
+    for gap, crossing in ((1e-9, False), (0.0, True)):
+        v = np.vstack([tri, tri + [0.2, 0.2, gap], far]).astype(np.float32)
+        want = self_intersections(v, faces)
+        assert len(want) == int(crossing)
+        for listing in (True, False):
+            boxes = FaceBoxes(faces, v, 0.5, listing)
+            np.testing.assert_array_equal(boxes.crossings(v), want)
+            np.testing.assert_array_equal(boxes.crossings(v, np.ones(3, bool)), want)
+            if listing:
+                np.testing.assert_array_equal(boxes.materialize().crossings(v), want)
+
+
 def test_bad_inputs():
     ss = label_surfaces(diagonal_gap(6))
     pairs = candidate_pairs(ss.faces, ss.lattice - 0.5, 0.5)
