@@ -11,10 +11,20 @@ from ..geometry.kernels import triangle_cross
 from ._filter_kernels import FAST
 
 
+@njit(cache=True, inline="always")
+def _cross64(pos, a, b, c):
+    """:func:`~anatomesh.core.geometry.kernels.triangle_cross` in float64 whatever the dtype of
+    ``pos``: float32 positions are read exactly, so the answer is that of their float64 copy."""
+    ax, ay, az = np.float64(pos[a, 0]), np.float64(pos[a, 1]), np.float64(pos[a, 2])
+    e1x, e1y, e1z = pos[b, 0] - ax, pos[b, 1] - ay, pos[b, 2] - az
+    e2x, e2y, e2z = pos[c, 0] - ax, pos[c, 1] - ay, pos[c, 2] - az
+    return e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
+
+
 @njit(cache=True)
 def _fold_check(pos, start, faces, eps, f):
     a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
-    nx, ny, nz = triangle_cross(pos, a, b, c)
+    nx, ny, nz = _cross64(pos, a, b, c)
     rx, ry, rz = triangle_cross(start, a, b, c)  # memory: computed, not an (M, 3) array
     r2 = rx * rx + ry * ry + rz * rz
     return r2 > 0.0 and nx * rx + ny * ry + nz * rz <= eps * r2
@@ -24,7 +34,7 @@ def _fold_check(pos, start, faces, eps, f):
 def folded(pos, start, faces, eps):
     """Faces whose normal (unnormalised) has turned by 90° or more from their normal at
     ``start``, or collapsed: ``n · n_start <= eps |n_start|²``. Faces with a zero normal at
-    ``start`` never count."""
+    ``start`` never count. ``pos`` float32 or float64 (checked in float64 alike)."""
     m = faces.shape[0]
     out = np.zeros(m, np.bool_)
     for f in prange(m):

@@ -56,13 +56,21 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
     return v.astype(dtype, copy=False), moved
 
 
+def folded_faces(pos: np.ndarray, start: np.ndarray, s: MeshStructure,
+                 eps: float = 1e-3) -> np.ndarray:
+    """The faces :func:`unfold` finds folded, (K,) int64: ``pos`` (N, 3) float64, or float32
+    read as float64 (the same faces as on its float64 copy, without making it)."""
+    return np.flatnonzero(_gk.folded(pos, start, s.faces, float(eps)))
+
+
 def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure,
                     rounds: int = 10, eps: float = 1e-3,
-                    touched: Optional[np.ndarray] = None) -> int:
+                    touched: Optional[np.ndarray] = None, bad: Optional[np.ndarray] = None) -> int:
     """:func:`unfold` on float64 (N, 3) ``pos``, in place (no checks); returns the vertices
     moved, and marks them in ``touched`` (N,) bool if given (all False on entry). After the
-    first full scan only faces around moved vertices are checked again."""
-    bad = np.flatnonzero(_gk.folded(pos, start, s.faces, float(eps)))
+    first full scan (none when its result ``bad`` of :func:`folded_faces` is given) only faces
+    around moved vertices are checked again."""
+    bad = folded_faces(pos, start, s, eps) if bad is None else bad
     if bad.size == 0:
         return 0
     if touched is None:

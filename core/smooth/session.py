@@ -35,7 +35,7 @@ from .checks import mesh_structure, precision_dtype
 from .constraints import (Constraint, clamp, distance_gain, lattice_constraint, staircase_params,
                           voxel_constraint)
 from .filters import FILTERS
-from .guards import VolumeRegions, component_regions, unfold_in_place
+from .guards import VolumeRegions, component_regions, folded_faces, unfold_in_place
 from .presets import DEFAULT, resolve
 from .report import SmoothingReport, describe
 from .shell_measures import ShellMeasures, label_sides, shell_key, shell_warnings
@@ -302,11 +302,11 @@ class SmoothingSession:
         Returns (float32 positions, vertices unfolded, crossings left or None)."""
         s, unfolded, left = self.structure, 0, None
         for _ in range(rounds):
-            pos, touched = out.astype(np.float64), np.zeros(len(out), np.bool_)
-            moved = unfold_in_place(pos, self.rest, s, touched=touched)
-            if moved == 0:
+            bad = folded_faces(out, self.rest, s)  # memory: a float64 copy only if needed
+            if bad.size == 0:
                 break
-            unfolded += moved
+            pos, touched = out.astype(np.float64), np.zeros(len(out), np.bool_)
+            unfolded += unfold_in_place(pos, self.rest, s, touched=touched, bad=bad)
             out = pos.astype(np.float32)
             del pos  # memory: untangled in place, the float32 positions only
             out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
