@@ -64,7 +64,13 @@ def _move(i, x, y, z, sx, sy, sz, k, e, gain, axis, C, S, r2, metric):
         dx, dy, dz = (axis[0, 0] * dx + axis[0, 1] * dy + axis[0, 2] * dz,
                       axis[1, 0] * dx + axis[1, 1] * dy + axis[1, 2] * dz,
                       axis[2, 0] * dx + axis[2, 1] * dy + axis[2, 2] * dz)
-    px, py, pz = x + dx, y + dy, z + dz
+    return _box_cap(i, x + dx, y + dy, z + dz, C, S, r2, metric)
+
+
+@njit(cache=True, inline="always")
+def _box_cap(i, px, py, pz, C, S, r2, metric):
+    """(px, py, pz) clamped to the unit box around ``C[:, i]``, then capped (:func:`_cap`);
+    ``C`` or ``S`` None: that step compiled out."""
     if C is not None:
         one = C.dtype.type(1)  # a literal 1 would turn float32 into float64
         cx, cy, cz = C[0, i], C[1, i], C[2, i]
@@ -140,6 +146,35 @@ def padded_pass(P, Q, cols, inv_count, factor, gain, axis, C, S, r2, metric):
 
 
 @njit(parallel=True, fastmath=FAST, cache=True)
+def padded_pass_along(P, Q, cols, inv_count, factor, gain, k, C, S, r2, metric):
+    """:func:`padded_pass` with the axis map ``e_k e_kᵀ`` (moves along frame axis ``k`` only,
+    e.g. a staircase pass across thick slices): the same positions, from a third of the
+    gathers (the other coordinates' moves are exact zeros there)."""
+    n = cols.shape[1]
+    zero = P[0, n]
+    for i in prange(n):
+        sk = zero
+        for a in range(PAD_WIDTH):
+            sk += P[k, cols[a, i]]
+        c = inv_count[i]
+        e = factor if c > zero else zero
+        d = factor * c * sk - e * P[k, i]
+        if gain is not None:
+            d = gain[i] * d
+        px, py, pz = P[0, i], P[1, i], P[2, i]
+        if k == 0:
+            px = px + d
+        elif k == 1:
+            py = py + d
+        else:
+            pz = pz + d
+        px, py, pz = _box_cap(i, px, py, pz, C, S, r2, metric)
+        Q[0, i] = px
+        Q[1, i] = py
+        Q[2, i] = pz
+
+
+@njit(parallel=True, fastmath=FAST, cache=True)
 def constrain_columns(Q, n, C, S, r2, metric, diamond):
     """The constraint in place on the first ``n`` columns of ``Q``: the unit box or, when
     ``diamond``, the unit L1 ball around ``C[:, i]`` (``C`` None: neither); then the cap of
@@ -164,10 +199,11 @@ def constrain_columns(Q, n, C, S, r2, metric, diamond):
 
 
 @njit(cache=True)
-def padded_passes(a, b, cols, inv_count, ext, level_at, factors, on_axis, gain, axis, diamond,
-                  C, S, r2, metric):
+def padded_passes(a, b, cols, inv_count, ext, level_at, factors, on_axis, gain, axis, along,
+                  diamond, C, S, r2, metric):
     """Run ``len(factors)`` passes alternating between ``a`` and ``b`` (pass ``p`` uses
-    ``factors[p]`` and the axis map when ``on_axis[p]``), in one call: no Python work between
+    ``factors[p]`` and the axis map when ``on_axis[p]``; ``along`` >= 0: the axis map is
+    ``e_along e_alongᵀ``, :func:`padded_pass_along`), in one call: no Python work between
     passes. ``diamond``: ``C`` is the centre of diamonds, applied after each pass
     (:func:`constrain_columns`), not of boxes. Returns 0 when the result is in ``a``, 1 when
     in ``b``."""
@@ -177,11 +213,16 @@ def padded_passes(a, b, cols, inv_count, ext, level_at, factors, on_axis, gain, 
         helper_sums(src, ext, level_at, n)
         f = factors[p]
         if diamond:
-            if on_axis[p]:
+            if on_axis[p] and along >= 0:
+                padded_pass_along(src, dst, cols, inv_count, f, gain, along, None, None, r2,
+                                  metric)
+            elif on_axis[p]:
                 padded_pass(src, dst, cols, inv_count, f, gain, axis, None, None, r2, metric)
             else:
                 padded_pass(src, dst, cols, inv_count, f, gain, None, None, None, r2, metric)
             constrain_columns(dst, n, C, S, r2, metric, True)
+        elif on_axis[p] and along >= 0:
+            padded_pass_along(src, dst, cols, inv_count, f, gain, along, C, S, r2, metric)
         elif on_axis[p]:
             padded_pass(src, dst, cols, inv_count, f, gain, axis, C, S, r2, metric)
         else:

@@ -5,6 +5,8 @@ in the :class:`~anatomesh.core.geometry.neighbors.MeshStructure`, positions in t
 constraint fused into each pass, all passes in one numba call."""
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from . import _pass_kernels as _k
@@ -67,6 +69,7 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
         _k.constrain_columns(a, n, box_c, cap_s, r2, metric, kind == 2)
     if axis is not None:
         axis = (to_frame @ axis @ np.linalg.inv(to_frame)).astype(dt)
+    along = _projector_axis(axis)
     factors = np.asarray(factors, dt)
     on_axis = np.asarray(on_axis, np.bool_)
     total = factors.shape[0]
@@ -75,7 +78,7 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     for p0 in range(0, total, step):
         src_dst = (a, b) if which == 0 else (b, a)
         r = _k.padded_passes(*src_dst, *ring, factors[p0:p0 + step], on_axis[p0:p0 + step],
-                             None if g.size == 0 else g.astype(dt), axis, kind == 2, box_c,
+                             None if g.size == 0 else g.astype(dt), axis, along, kind == 2, box_c,
                              cap_s, r2, metric)
         which ^= r
         report(progress, min(p0 + step, total) / total, text)
@@ -86,3 +89,12 @@ def uniform_passes(vertices, faces, factors, on_axis, axis, *, structure, constr
     out = np.empty((n, 3), out_dtype(vertices))
     _k.from_columns(result, frame_inv if boxed else EYE, out)
     return out
+
+
+def _projector_axis(axis: Optional[np.ndarray]) -> int:
+    """k when the (3, 3) axis map is exactly ``e_k e_kᵀ`` (moves along frame axis k only: the
+    passes then gather that coordinate alone), else -1."""
+    if axis is None or np.count_nonzero(axis) != 1:
+        return -1
+    k = int(np.argmax(np.abs(np.diag(axis))))
+    return k if axis[k, k] == 1 else -1

@@ -707,6 +707,29 @@ def test_parallel_passes_on_a_real_map_match_a_vectorised_reference():
     assert np.abs(out - v).max() > 0.5  # vertices did move
 
 
+def test_passes_along_one_frame_axis_match_the_general_axis_map(monkeypatch):
+    """Staircase passes across the slices of an axis-aligned lattice move along one axis of the
+    box frame: they gather that coordinate alone and give the positions of the general axis
+    map (per-vertex gain, cell box and cap included), on the 41-label map."""
+    from anatomesh.core import load
+    from anatomesh.core.smooth import passes
+
+    ss = label_surfaces(load(shared("totalsegmentator", "example_seg.nii.gz")))
+    v = ss.vertices.astype(np.float64)
+    box = S.lattice_constraint(ss.affine, ss.lattice, half=0.45, max_deviation=0.8)
+    axis = ss.affine[:3, 2] / np.linalg.norm(ss.affine[:3, 2])
+    kw = dict(iterations=2, constraint=box, gain=RNG.uniform(0.3, 1.0, len(v)), slice_axis=axis,
+              slice_iterations=3)
+    seen, projector_axis = [], passes._projector_axis
+    monkeypatch.setattr(passes, "_projector_axis", lambda a: seen.append(projector_axis(a)) or seen[-1])
+    along = S.taubin(v, ss.faces, **kw)
+    assert seen == [2]  # the fast path ran
+    monkeypatch.setattr(passes, "_projector_axis", lambda a: -1)
+    np.testing.assert_allclose(along, S.taubin(v, ss.faces, **kw), rtol=0, atol=1e-12)
+    without = S.taubin(v, ss.faces, **dict(kw, slice_iterations=0))
+    assert np.abs(along - without).max() > 0.1  # the passes along the axis moved vertices
+
+
 def test_float32_precision_stays_in_the_box_and_near_float64():
     """The live sliders' float32 arithmetic on the 41-label map (lattice box, junction curves,
     a cap): within 1e-3 mm of float64, inside every voxel cell, the cap kept, seams shared."""
