@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels import find_root, other_corners
+from .kernels import find_root, other_corners, union_faces
 
 
 @njit(cache=True)
@@ -268,14 +268,7 @@ def components(faces, n):
     """Connected components of the mesh's edge graph (n vertices): (n,) int64 labels 0..C-1 in
     order of first vertex, by union-find over the faces' edges (no 1-ring: the root kept is a
     component's smallest vertex). Isolated vertices get their own label."""
-    parent = np.arange(n)
-    for f in range(faces.shape[0]):
-        for c in range(2):
-            ra, rb = find_root(parent, faces[f, c]), find_root(parent, faces[f, c + 1])
-            if ra < rb:
-                parent[rb] = ra
-            elif rb < ra:
-                parent[ra] = rb
+    parent = union_faces(faces, n)
     label = np.empty(n, np.int64)
     c = 0
     for x in range(n):

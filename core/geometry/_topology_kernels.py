@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels import find_root, other_corners
+from .kernels import find_root, other_corners, union_faces
 
 
 @njit(cache=True)
@@ -121,14 +121,7 @@ def _vertex_counts(i, faces, vf_offsets, vf, spoke, sign, order, parent, out):
 def face_components(faces, n_vertices):
     """Components of faces linked through shared vertices: ``(count, labels (M,) int64)``,
     numbered in the order of each component's smallest vertex index."""
-    parent = np.arange(n_vertices)
-    for f in range(faces.shape[0]):
-        for e in range(2):
-            ra, rb = find_root(parent, faces[f, e]), find_root(parent, faces[f, e + 1])
-            if ra < rb:
-                parent[rb] = ra
-            elif rb < ra:
-                parent[ra] = rb
+    parent = union_faces(faces, n_vertices)
     label = np.full(n_vertices, -1, np.int64)
     for f in range(faces.shape[0]):
         label[find_root(parent, faces[f, 0])] = 0

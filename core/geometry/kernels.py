@@ -47,6 +47,21 @@ def find_root(parent, x):
 
 
 @njit(cache=True)
+def union_faces(faces, n):
+    """Union-find forest (n,) int64 of the mesh's edge graph, from the faces' edges: every
+    component's root is its smallest vertex (an isolated vertex is its own root)."""
+    parent = np.arange(n)
+    for f in range(faces.shape[0]):
+        for c in range(2):
+            ra, rb = find_root(parent, faces[f, c]), find_root(parent, faces[f, c + 1])
+            if ra < rb:
+                parent[rb] = ra
+            elif rb < ra:
+                parent[ra] = rb
+    return parent
+
+
+@njit(cache=True)
 def union_find_roots(a, b, n):
     """Root of each of ``n`` nodes for the graph with edges (a[i], b[i]); int64 (n,).
 
