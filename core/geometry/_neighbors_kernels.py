@@ -294,7 +294,7 @@ def _chain_length(c, width, ext_width):
 
 @njit(cache=True)
 def padded_columns(offsets, nbr, width, ext_width):
-    """CSR → fixed-width columns (column-major ELLPACK) for branch-free SIMD neighbour loops.
+    """CSR → fixed-width columns (column-major ELLPACK) for branch-free neighbour loops.
 
     Returns ``(cols (width, n) uint32, inv_count (n,) float64, ext (ext_width, H) uint32,
     level_at (levels + 1,) int64)``. Column ``i`` of ``cols`` holds the neighbours of ``i`` then

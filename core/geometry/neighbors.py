@@ -60,7 +60,7 @@ class PaddedRing(NamedTuple):
 
     Column ``i`` of ``cols`` lists the neighbours of vertex ``i`` padded with ``N`` (the index of
     a zero column appended to the positions), so the smoothing loop has a fixed trip count, no
-    branch and contiguous index loads for SIMD gathers over consecutive vertices. The few rows
+    branch and contiguous index loads over consecutive vertices. The few rows
     with more neighbours than the width (3 % of a marching-cubes surface's vertices for 8) end
     in a *helper column* ``N + 1 + h`` holding the sum of their other neighbours, listed in
     ``ext[:, h]`` and summed level by level before each pass (see

@@ -3,9 +3,11 @@
 
 Layout: positions are "structure of arrays" P (3, N + 1) — a row per coordinate, column N zero
 (the pad) — and neighbours are padded columns ``cols`` (width, N) uint32 (column-major ELLPACK,
-see ``MeshStructure.padded``). The pass loop then has a fixed trip count and no branch, and LLVM
-turns it into SIMD gathers over several vertices at once (about 2x less CPU than a
-row-per-vertex layout). It runs in float32 (live sliders) or float64 alike.
+see ``MeshStructure.padded``). The neighbour loop then has a fixed trip count and no branch
+and unrolls. The loop over vertices is kept scalar (:func:`~anatomesh.core.geometry.kernels.
+scalar_loop`): LLVM would vectorize it with three gathers per neighbour, which run slower here
+than scalar loads (a pass along one axis gathers one coordinate and stays vectorized). It runs
+in float32 (live sliders) or float64 alike.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import math
 from numba import njit, prange
 
 from ._filter_kernels import FAST, project_l1
+from ..geometry.kernels import scalar_loop
 
 #: width of the padded neighbour rows (``MeshStructure.padded``): a compile-time constant, so
 #: the neighbour loop unrolls; 97 % of marching-cubes vertices have at most 8 neighbours, the
@@ -53,7 +56,7 @@ def _move(i, x, y, z, sx, sy, sz, k, e, gain, axis, C, S, r2, metric):
     constraint's normalised frame) and then pulled towards ``S[:, i]`` until
     ``|metric @ (p − S_i)|² <= r2``. ``gain``, ``axis``, ``C``, ``S`` may each be None: numba
     then compiles that step out (a kernel per combination), and the rest stays branch-free
-    but for the cap's select, so the pass loop vectorises."""
+    but for the cap's select."""
     dx = k * sx - e * x
     dy = k * sy - e * y
     dz = k * sz - e * z
@@ -128,10 +131,11 @@ def padded_pass(P, Q, cols, inv_count, factor, gain, axis, C, S, r2, metric):
     n = cols.shape[1]
     zero = P[0, n]
     for i in prange(n):
+        scalar_loop()  # faster than the vectorized loop's gathers (see scalar_loop)
         sx = zero
         sy = zero
         sz = zero
-        for a in range(PAD_WIDTH):  # a constant trip count: unrolled, then vectorised over i
+        for a in range(PAD_WIDTH):  # a constant trip count: unrolled
             j = cols[a, i]
             sx += P[0, j]
             sy += P[1, j]
