@@ -363,25 +363,48 @@ def _column_sweep(c, B, X, box, rel_eps, offsets, out):
             offsets[k + 1] = n
 
 
+#: the sweep's columns go to the threads in this many runs of about equal rows
+SWEEP_PARTS = 64
+
+
+@njit(cache=True)
+def _row_parts(start, parts):
+    """Column bounds (parts + 1,) int64 cutting the columns of the CSR ``start`` into ``parts``
+    runs of about equal rows: a prange over the runs keeps the threads equally busy, where a
+    prange over the columns gives each thread half of them (on the chest CT's bone surface the
+    first half holds 72 % of the faces)."""
+    ncol = start.shape[0] - 1
+    bounds = np.empty(parts + 1, np.int64)
+    c = 0
+    for p in range(parts):
+        while c < ncol and start[c] < start[ncol] * p // parts:
+            c += 1
+        bounds[p] = c
+    bounds[parts] = ncol
+    return bounds
+
+
 @njit(parallel=True, cache=True)
 def sweep_csr(B, X, box, rel_eps):
     """CSR over bucket rows ``(offsets (M + 1,), partner rows int32)`` of :func:`_column_sweep`
     over all columns: candidate pairs (``X`` empty) or crossing pairs (each pair once)."""
     m = B.fid.shape[0]
-    ncol = B.start.shape[0] - 1
+    runs = _row_parts(B.start, SWEEP_PARTS)
     offsets = np.zeros(m + 1, np.int64)  # memory: the counts, then (summed in place) offsets
     none = np.zeros(0, np.int32)
-    for c in prange(ncol):
-        if B.start[c + 1] > B.start[c]:
-            _column_sweep(c, B, X, box, rel_eps, offsets, none)
+    for p in prange(SWEEP_PARTS):
+        for c in range(runs[p], runs[p + 1]):
+            if B.start[c + 1] > B.start[c]:
+                _column_sweep(c, B, X, box, rel_eps, offsets, none)
     for k in range(m):
         offsets[k + 1] += offsets[k]
     partners = np.empty(offsets[m], np.int32)
     if offsets[m] == 0:
         return offsets, partners
-    for c in prange(ncol):
-        if offsets[B.start[c + 1]] > offsets[B.start[c]]:
-            _column_sweep(c, B, X, box, rel_eps, offsets, partners)
+    for p in prange(SWEEP_PARTS):
+        for c in range(runs[p], runs[p + 1]):
+            if offsets[B.start[c + 1]] > offsets[B.start[c]]:
+                _column_sweep(c, B, X, box, rel_eps, offsets, partners)
     return offsets, partners
 
 
