@@ -338,6 +338,8 @@ def _column_sweep(c, B, X, box, rel_eps, offsets, out):
     for k in range(start[c], start[c + 1]):
         if fill and offsets[k + 1] == offsets[k]:
             continue
+        if test:
+            lo0, lo1, lo2, hi0, hi1, hi2 = _box_row(box, k)
         n = 0
         for j in range(nb.shape[0]):
             c2, dx, dy = nb[j, 0], nb[j, 1], nb[j, 2]
@@ -349,7 +351,7 @@ def _column_sweep(c, B, X, box, rel_eps, offsets, out):
             while k2 < start[c2 + 1] and z[k2] <= z[k] + reach[k, 2]:
                 ok = False
                 if test:
-                    if not _boxes_apart(box, k, k2):
+                    if _boxes_meet(box, k2, lo0, lo1, lo2, hi0, hi1, hi2):
                         if not _shares_vertex(faces, fid[k], fid[k2]):
                             ok = _cross_rest(X, faces, fid, k, k2, rel_eps)
                 elif _overlap(lo, hi, k, k2):
@@ -575,14 +577,30 @@ def _cross_rest(X, faces, fid, k, k2, rel_eps):
                    faces[q, 2], rel_eps)
 
 
+@njit(cache=True, inline="always")
+def _box_row(box, k):
+    """Row k's 16-bit box: ``(lo x, lo y, lo z, hi x, hi y, hi z)``."""
+    return box[k, 0], box[k, 1], box[k, 2], box[k, 3], box[k, 4], box[k, 5]
+
+
+@njit(cache=True, inline="always")
+def _boxes_meet(box, k2, lo0, lo1, lo2, hi0, hi1, hi2):
+    """``not _boxes_apart`` for row k2 and a box read before (:func:`_box_row`), without early
+    exits: in a loop over candidates most are apart, on any axis, and the exits mispredicted
+    (the bone surface's 12.3 M listed pairs, 97.7 % apart: box tests 55 → 30 ms)."""
+    return (box[k2, 0] <= hi0) & (lo0 <= box[k2, 3]) & (box[k2, 1] <= hi1) & \
+        (lo1 <= box[k2, 4]) & (box[k2, 2] <= hi2) & (lo2 <= box[k2, 5])
+
+
 @njit(parallel=True, cache=True)
 def test_pairs(X, B, offsets, partners, rel_eps, box, hit):
     """``hit[t] = 1`` when candidate pair t (bucket row, ``partners[t]``) crosses."""
     faces, fid = B.faces, B.fid
     for k in prange(fid.shape[0]):
+        lo0, lo1, lo2, hi0, hi1, hi2 = _box_row(box, k)
         for t in range(offsets[k], offsets[k + 1]):
             k2 = partners[t]
-            hit[t] = 0
-            if not _boxes_apart(box, k, k2):
-                if _cross_rest(X, faces, fid, k, k2, rel_eps):
-                    hit[t] = 1
+            near = _boxes_meet(box, k2, lo0, lo1, lo2, hi0, hi1, hi2)
+            if near:
+                near = _cross_rest(X, faces, fid, k, k2, rel_eps)
+            hit[t] = near
