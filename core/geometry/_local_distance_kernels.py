@@ -8,9 +8,17 @@ from ._spatial_kernels import closest_on_triangle
 
 
 @njit(cache=True, inline="always")
-def _distance(px, py, pz, vertices, faces, f):
+def _distance2(px, py, pz, vertices, faces, f):
+    """The squared distance (mm²) from (px, py, pz) to face f: a minimum over faces is taken
+    on squares and its root drawn once (the root is monotone and correctly rounded, so the
+    result is the same as the minimum of the roots)."""
     x, y, z, _ = closest_on_triangle(px, py, pz, vertices, faces[f, 0], faces[f, 1], faces[f, 2])
-    return math.sqrt((x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2)
+    return (x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2
+
+
+@njit(cache=True, inline="always")
+def _distance(px, py, pz, vertices, faces, f):
+    return math.sqrt(_distance2(px, py, pz, vertices, faces, f))
 
 
 @njit(parallel=True, cache=True)
@@ -76,8 +84,8 @@ def _vertex_samples(i, after, rest, faces, vf_offsets, vf, groups, seen, best, w
     n = 0
     for t in range(vf_offsets[i], vf_offsets[i + 1]):
         g = vf[t]
-        d0 = _distance(after[i, 0], after[i, 1], after[i, 2], rest, faces, g)
-        d1 = _distance(rest[i, 0], rest[i, 1], rest[i, 2], after, faces, g)
+        d0 = _distance2(after[i, 0], after[i, 1], after[i, 2], rest, faces, g)
+        d1 = _distance2(rest[i, 0], rest[i, 1], rest[i, 2], after, faces, g)
         for side in range(2):
             k = groups[g, side]
             if k < 0:
@@ -94,7 +102,7 @@ def _vertex_samples(i, after, rest, faces, vf_offsets, vf, groups, seen, best, w
                 best[0, j], best[1, j] = min(best[0, j], d0), min(best[1, j], d1)
     for j in range(n):
         for d in range(2):
-            _add(seen[j], best[d, j], w[d], s[d], c[d])
+            _add(seen[j], math.sqrt(best[d, j]), w[d], s[d], c[d])
 
 
 @njit(cache=True, inline="always")
@@ -102,13 +110,14 @@ def _centroid_samples(f, after, rest, faces, vf_offsets, vf, groups, w, s, c):
     """Face f's two centroid samples, each to the face and the faces across its edges."""
     px, py, pz = _centroid(after, faces, f)
     qx, qy, qz = _centroid(rest, faces, f)
-    d0 = _distance(px, py, pz, rest, faces, f)
-    d1 = _distance(qx, qy, qz, after, faces, f)
+    d0 = _distance2(px, py, pz, rest, faces, f)
+    d1 = _distance2(qx, qy, qz, after, faces, f)
     for e in range(3):
         g = _across(faces, vf_offsets, vf, f, e)
         if g >= 0:
-            d0 = min(d0, _distance(px, py, pz, rest, faces, g))
-            d1 = min(d1, _distance(qx, qy, qz, after, faces, g))
+            d0 = min(d0, _distance2(px, py, pz, rest, faces, g))
+            d1 = min(d1, _distance2(qx, qy, qz, after, faces, g))
+    d0, d1 = math.sqrt(d0), math.sqrt(d1)
     for side in range(2):
         k = groups[f, side]
         if k >= 0:
