@@ -127,8 +127,9 @@ def scalar_loop():
     For loops that gather neighbours' coordinates through an index array: vectorized, each
     gather is an AVX-512 ``vgatherqpd``, and on this machine's CPU (AMD Zen 4) those run slower
     than the scalar loads they replace. Measured on the chest CT's 1M-triangle bone surface:
-    40 uniform umbrella passes 147-213 → 101-132 ms; the volume step's vertex moves 25 → 18 ms
-    a call."""
+    40 uniform umbrella passes 140-154 → 91-112 ms (with the voxel box: 154-169 → 112-124 ms);
+    the volume step's vertex moves 17.5-18 → 14-16 ms a call. A pass along one axis (one
+    gather per neighbour) ran slower scalar: 86-91 → 116-129 ms for 42 passes."""
 
 
 @intrinsic
