@@ -76,13 +76,16 @@ def _box_cap(i, px, py, pz, C, S, r2, metric):
     ``C`` or ``S`` None: that step compiled out."""
     if C is not None:
         one = C.dtype.type(1)  # a literal 1 would turn float32 into float64
-        cx, cy, cz = C[0, i], C[1, i], C[2, i]
-        px = min(max(px, cx - one), cx + one)
-        py = min(max(py, cy - one), cy + one)
-        pz = min(max(pz, cz - one), cz + one)
+        px, py, pz = _unit(px, C[0, i], one), _unit(py, C[1, i], one), _unit(pz, C[2, i], one)
     if S is not None:
         px, py, pz = _cap(i, px, py, pz, S, r2, metric)
     return px, py, pz
+
+
+@njit(cache=True, inline="always")
+def _unit(x, c, one):
+    """x clamped to [c − one, c + one]: one coordinate of the unit box."""
+    return min(max(x, c - one), c + one)
 
 
 @njit(cache=True, inline="always")
@@ -195,8 +198,7 @@ def padded_pass_row(P, Q, cols, inv_count, factor, gain, k, C):
     for i in prange(n):
         x = _along(P, cols, inv_count, factor, gain, k, i, zero)
         if C is not None:
-            one = C.dtype.type(1)
-            x = min(max(x, C[k, i] - one), C[k, i] + one)
+            x = _unit(x, C[k, i], C.dtype.type(1))
         Q[k, i] = x
 
 
@@ -208,15 +210,12 @@ def constrain_columns(Q, n, C, S, r2, metric, diamond):
     for i in prange(n):
         px, py, pz = Q[0, i], Q[1, i], Q[2, i]
         if C is not None:
-            cx, cy, cz = C[0, i], C[1, i], C[2, i]
             if diamond:
+                cx, cy, cz = C[0, i], C[1, i], C[2, i]
                 u0, u1, u2 = project_l1(px - cx, py - cy, pz - cz)
                 px, py, pz = cx + u0, cy + u1, cz + u2
             else:
-                one = C.dtype.type(1)
-                px = min(max(px, cx - one), cx + one)
-                py = min(max(py, cy - one), cy + one)
-                pz = min(max(pz, cz - one), cz + one)
+                px, py, pz = _box_cap(i, px, py, pz, C, None, r2, metric)
         if S is not None:
             px, py, pz = _cap(i, px, py, pz, S, r2, metric)
         Q[0, i] = px
