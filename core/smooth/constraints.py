@@ -122,10 +122,11 @@ def lattice_constraint(affine: np.ndarray, lattice: np.ndarray, *, half: float =
     kind : "box" or "diamond"
     """
     A = check_affine(affine)
-    lat = np.asarray(lattice, np.float64)
-    if lat.ndim != 2 or lat.shape[1] != 3:
-        raise AnatomeshError(f"lattice must be (N, 3) integer corners, got shape {lat.shape}")
-    center = np.einsum("ij,kj->ik", lat - 0.5, A[:3, :3]) + A[:3, 3]  # no BLAS threads
+    lat = np.asarray(lattice)
+    if lat.ndim != 2 or lat.shape[1] != 3 or lat.dtype.kind not in "iu":
+        raise AnatomeshError(f"lattice must be (N, 3) integer corners, got {lat.dtype} {lat.shape}")
+    center = np.empty((lat.shape[0], 3))
+    _k.lattice_centres(np.ascontiguousarray(lat, np.int32), A, center)  # corners of a grid: int32
     return Constraint(kind=kind, center=center, frame=np.linalg.inv(A[:3, :3]), half=(half,) * 3,
                       max_deviation=max_deviation)
 

@@ -293,6 +293,9 @@ def test_taubin_with_lattice_box_junctions_gain_and_slice_axis_matches_reference
     rings, _ = ref_feature_rings(f, len(v), groups)
     A3 = aff[:3, :3]
     centre = (ss.lattice - 0.5) @ A3.T + aff[:3, 3]
+    np.testing.assert_allclose(cons.center, centre, rtol=0, atol=1e-12)  # the cells' centres, mm
+    with pytest.raises(AnatomeshError, match="integer corners"):
+        S.lattice_constraint(aff, ss.lattice + 0.25)
 
     def c(i):
         return centre[i], A3, 0.4, "box", 0.9, v[i]
