@@ -141,9 +141,9 @@ class ShellMeasures:
         faces, starts = self._by_label
         out = np.zeros((2, len(self.values)))
         for k in range(len(self.values)):
-            part = angle[faces[starts[k]:starts[k + 1]]]
+            part = angle[faces[starts[k]:starts[k + 1]]]  # a copy: the percentile may reorder it
             if part.size:
-                out[0, k], out[1, k] = part.min(), np.percentile(part, 1)
+                out[0, k], out[1, k] = part.min(), np.percentile(part, 1, overwrite_input=True)
         return out
 
     def _distances(self, after: np.ndarray):
