@@ -15,11 +15,11 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING, Dict, List, Optional
+from typing import TYPE_CHECKING, Dict, List, Optional, Tuple
 
 import numpy as np
 
-from ..core.geometry.topology import topology_and_size
+from ..core.geometry.topology import Topology, topology_and_size
 from ..core.model.mesh import Mesh
 from .outputs import relative
 from .recipe import SMOOTH_NONE, dump_recipe
@@ -35,6 +35,7 @@ def build_report(result: "Result") -> Dict:
     smoothing = result.smoothing or {"method": SMOOTH_NONE, "params": {}, "shells": {}, "warnings": []}
     base = p.report.parent.resolve()
     facts = dict(result.input_facts)  # taken by run() before the voxels may be let go
+    sizes = result.surface_sizes or surface_sizes(result.surfaces)
     out = {"space": result.volume.space, "units": "mm", "input": facts,
            "recipe": dataclasses.asdict(recipe),
            "smoothing": {"preset": recipe.smooth,
@@ -42,8 +43,9 @@ def build_report(result: "Result") -> Dict:
            "decimation": _decimation_summary(result.decimation),
            "files": {fmt: relative(path, base) for fmt, path in p.scene.items()},
            "timings": {k: round(v, 4) for k, v in result.timings.items()},
-           "surfaces": [surface_entry(m, extra, files, smoothing, result.decimation, base)
-                        for m, extra, files in zip(result.surfaces, result.cleaning, p.surfaces)]}
+           "surfaces": [surface_entry(m, size, extra, files, smoothing, result.decimation, base)
+                        for m, size, extra, files in zip(result.surfaces, sizes, result.cleaning,
+                                                         p.surfaces)]}
     out["files"].update(report=relative(p.report, base), recipe=relative(p.recipe, base))
     if "layers" in facts:  # segmentations (issue 14): overlapping structures, one layer each
         out["layers"], out["overlaps"] = facts["layers"], facts["overlaps"]
@@ -60,10 +62,19 @@ def build_report(result: "Result") -> Dict:
     return out
 
 
-def surface_entry(m: Mesh, extra: Dict, files: Dict[str, Path], smoothing: Dict,
-                  decimation: Optional[Dict], base: Path) -> Dict:
-    """One surface's entry: its files, topology, size, and the smoothing/decimation measures."""
-    topo, area, volume = topology_and_size(m.vertices, m.faces)
+def surface_sizes(meshes: List[Mesh]) -> List[Tuple[Topology, float, float]]:
+    """Per mesh ``(topology, area mm², enclosed volume mm³)`` for its entry
+    (:func:`~anatomesh.core.geometry.topology.topology_and_size`; its kernels release the GIL,
+    so :func:`~anatomesh.app.run.run` computes them while the files are written)."""
+    return [topology_and_size(m.vertices, m.faces) for m in meshes]
+
+
+def surface_entry(m: Mesh, size: Tuple[Topology, float, float], extra: Dict,
+                  files: Dict[str, Path], smoothing: Dict, decimation: Optional[Dict],
+                  base: Path) -> Dict:
+    """One surface's entry: its files, topology and size (``size`` from
+    :func:`surface_sizes`), and the smoothing/decimation measures."""
+    topo, area, volume = size
     return {"value": m.value, "name": m.name, "color": list(m.color),
             "files": {fmt: relative(path, base) for fmt, path in files.items()},
             "vertices": topo.vertices, "faces": topo.faces,

@@ -9,6 +9,7 @@ path before anything is written (existing files are refused unless ``overwrite``
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Union
 
@@ -50,6 +51,7 @@ class Result:
     web: Optional[Dict] = None        # the web page's summary (issue 16)
     preprocess: Optional[Dict] = None  # issue 15: steps, parameters, measured effects
     input_facts: Optional[Dict] = None  # the input's facts for the report (describe, no histogram)
+    surface_sizes: Optional[List] = None  # per surface (topology, area, volume): report.surface_sizes
 
     @property
     def report_path(self):
@@ -86,7 +88,10 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     pre_warnings = _finish_surfaces(res, pre, clock)
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
-    outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
+    with ThreadPoolExecutor(1) as pool:  # speed: the report's sizes while the files are written
+        sizes = pool.submit(reports.surface_sizes, res.surfaces)
+        outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
+    res.surface_sizes = sizes.result()
     res.lod = outputs.write_lods(res.surface_set, recipe, res.plan, clock.sub(0.85))
     res.web = outputs.write_web(res, clock.sub(0.85))  # issue 16
     if blender is not None:

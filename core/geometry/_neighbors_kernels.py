@@ -51,7 +51,7 @@ def _compact_rows(buf, upper_offsets, counts):
     return offsets, out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def vertex_faces(faces, n_vertices):
     """Vertex → incident faces CSR (face ids ascending per vertex)."""
     m = faces.shape[0]

@@ -14,7 +14,7 @@ from numba import njit, prange
 from .kernels import find_root, other_corners, union_faces
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def face_measures(vertices, faces, min_area):
     """``(area, volume, degenerate, repeated)`` of a triangle mesh.
 
@@ -49,7 +49,7 @@ def face_measures(vertices, faces, min_area):
     return area, volume / 6.0, degenerate, repeated
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, nogil=True)
 def vertex_topology(faces, vf_offsets, vf):
     """Edge and fan counts, one vertex at a time (:func:`_vertex_counts`), in 16 parts of the
     vertices (parallel, each with its own scratch arrays and counts, summed at the end).
@@ -117,7 +117,7 @@ def _vertex_counts(i, faces, vf_offsets, vf, spoke, sign, order, parent, out):
     out[4] += fans > 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def face_components(faces, n_vertices):
     """Components of faces linked through shared vertices: ``(count, labels (M,) int64)``,
     numbered in the order of each component's smallest vertex index."""
