@@ -106,8 +106,8 @@ def constrain_all(pos, kind, center, frame, frame_inv, radius, start):
 @njit(parallel=True, cache=True)
 def lattice_centres(lattice, affine, out):
     """``out[i]`` (N, 3) float64 mm: ``affine`` (4, 4) applied to ``lattice[i] − 0.5`` (the
-    centre of the voxel cell of a lattice corner), summed in the order ``x, y, z, translation``
-    (as ``einsum`` + the translation did, in one pass and without (N, 3) temporaries)."""
+    centre of the voxel cell of lattice corner i), summed in the order ``x, y, z, translation``
+    (the bits of ``(lattice − 0.5) @ A.T + t``), in one pass without (N, 3) temporaries."""
     for i in prange(lattice.shape[0]):
         x, y, z = lattice[i, 0] - 0.5, lattice[i, 1] - 0.5, lattice[i, 2] - 0.5
         for r in range(3):
