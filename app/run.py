@@ -88,7 +88,9 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     pre_warnings = _finish_surfaces(res, pre, clock)
     clock.start("write", 0.7, "writing")
     res.plan = outputs.plan(res.surfaces, volume, recipe)
-    with ThreadPoolExecutor(1) as pool:  # speed: the report's sizes while the files are written
+    # speed: the report's sizes while the files are written; the writers launch no parallel
+    # kernel, so one thread at a time does (safe with every numba threading layer)
+    with ThreadPoolExecutor(1) as pool:
         sizes = pool.submit(reports.surface_sizes, res.surfaces)
         outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
     res.surface_sizes = sizes.result()

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels import find_root, other_corners, union_faces
+from .kernels import find_root, other_corners, union, union_faces
 
 
 @njit(cache=True)
@@ -374,10 +374,7 @@ def fan_counts(faces, vf_offsets, vf):
         fans = k
         for t in range(1, 2 * k):
             if spoke[order[t]] == spoke[order[t - 1]]:
-                a, b = find_root(parent, order[t] // 2), find_root(parent, order[t - 1] // 2)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-                    fans -= 1
+                fans -= union(parent, order[t] // 2, order[t - 1] // 2)
         out[i] = fans
     return out
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .kernels import find_root, other_corners, union_faces
+from .kernels import find_root, other_corners, union, union_faces
 
 
 @njit(cache=True, nogil=True)
@@ -102,10 +102,7 @@ def _vertex_counts(i, faces, vf_offsets, vf, spoke, sign, order, parent, out):
         while u < 2 * k and spoke[order[u]] == w:
             balance += sign[order[u]]
             if u > t:
-                ra, rb = find_root(parent, order[u] // 2), find_root(parent, order[t] // 2)
-                if ra != rb:
-                    parent[max(ra, rb)] = min(ra, rb)
-                    fans -= 1
+                fans -= union(parent, order[u] // 2, order[t] // 2)
             u += 1
         if w > i:
             count = u - t

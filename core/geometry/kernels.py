@@ -50,17 +50,24 @@ def find_root(parent, x):
 
 
 @njit(cache=True)
+def union(parent, a, b):
+    """Join the trees of ``a`` and ``b`` in the union-find forest ``parent`` under the smaller
+    root (so every root is its component's smallest index); True when they were apart."""
+    ra, rb = find_root(parent, a), find_root(parent, b)
+    if ra == rb:
+        return False
+    parent[max(ra, rb)] = min(ra, rb)
+    return True
+
+
+@njit(cache=True)
 def union_faces(faces, n):
     """Union-find forest (n,) int64 of the mesh's edge graph, from the faces' edges: every
     component's root is its smallest vertex (an isolated vertex is its own root)."""
     parent = np.arange(n)
     for f in range(faces.shape[0]):
         for c in range(2):
-            ra, rb = find_root(parent, faces[f, c]), find_root(parent, faces[f, c + 1])
-            if ra < rb:
-                parent[rb] = ra
-            elif rb < ra:
-                parent[ra] = rb
+            union(parent, faces[f, c], faces[f, c + 1])
     return parent
 
 
@@ -72,12 +79,7 @@ def union_find_roots(a, b, n):
     """
     parent = np.arange(n)
     for i in range(a.shape[0]):
-        ra = find_root(parent, a[i])
-        rb = find_root(parent, b[i])
-        if ra < rb:
-            parent[rb] = ra
-        elif rb < ra:
-            parent[ra] = rb
+        union(parent, a[i], b[i])
     for x in range(n):
         parent[x] = find_root(parent, x)
     return parent

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from ..geometry.kernels import triangle_cross
+from ..geometry.kernels import triangle_cross, union
 
 
 @njit(cache=True, inline="always")
@@ -142,14 +142,7 @@ def _around(faces, vf_offsets, vf, a, spoke, sign, parent):
                 if u < t:
                     first = False
                 elif u > t:  # link the faces of t and u
-                    r, q = t // 2, u // 2
-                    while parent[r] != r:
-                        r = parent[r]
-                    while parent[q] != q:
-                        q = parent[q]
-                    if r != q:
-                        parent[max(r, q)] = min(r, q)
-                        fans -= 1
+                    fans -= union(parent, t // 2, u // 2)
         if first and b > a:
             edges += 1
             if count == 1:
