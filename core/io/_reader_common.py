@@ -33,7 +33,7 @@ def clean_scalar(data: np.ndarray, path, warnings: List[str]) -> np.ndarray:
     bad = int(data.size - np.count_nonzero(finite))
     if bad:
         if bad == data.size:
-            raise AnatomeshError("every voxel is NaN or infinite; the file holds no image", path)
+            raise AnatomeshError("every voxel is NaN or infinite, so the file holds no image; export it again", path)
         fill = float(data[finite].min())
         if not data.flags.writeable:
             data = data.copy()

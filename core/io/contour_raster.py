@@ -27,6 +27,7 @@ import numpy as np
 from ..model.errors import AnatomeshError
 from ..model.segmentation import Mask, RoiContours, crop_mask, in_plane_axes
 from . import _contour_kernels as K
+from .plane_lattice import fitted_lattice, lattice_offsets
 
 #: contour planes further than this from the slice lattice (fraction of the step) are off-plane
 LATTICE_TOLERANCE = 0.05
@@ -92,16 +93,16 @@ def _slice_lattice(planes: np.ndarray, ref, path):
             return step, float(t_ct[0]), " (on the CT's slices)"
     if len(planes) == 1:
         return 1.0, float(planes[0]), ""
-    diffs = np.diff(planes)
-    step = float(diffs.min())
-    k = (planes - planes[0]) / step
-    off = np.abs(k - np.round(k))
+    step, t0 = fitted_lattice(planes, float(np.diff(planes).min()))
+    off = lattice_offsets(planes, step)
     if off.max() > LATTICE_TOLERANCE:
         bad = int(np.argmax(off))
         raise AnatomeshError(f"the contour plane at {planes[bad]:.2f} mm is off the slice lattice (step "
-                             f"{step:g} mm from {planes[0]:.2f} mm) by {off[bad] * step:.2f} mm: contours off "
-                             "any plane cannot be stacked", path)
-    return step, float(planes[0]), ""
+                             f"{step:.4g} mm through the other planes) by {off[bad] * step:.2f} mm ({off[bad]:.2f} "
+                             f"of a step; tolerance {LATTICE_TOLERANCE:g}), so the contours cannot be stacked; "
+                             "move that contour onto an image slice in the planning system and export the "
+                             "structure set again", path)
+    return step, t0, ""
 
 
 def plane_masks(roi: RoiContours, grid: ContourGrid) -> Dict[int, np.ndarray]:

@@ -22,6 +22,10 @@ slope and intercept is an integer and the values fit, float32 otherwise.
 Reading happens in two passes: headers only (``stop_before_pixels``) for every file, then pixels
 for the chosen series only, with a memory check before the allocation.
 
+One slice given (not a folder): that file is read strictly (its problems are errors naming it),
+then the other slices of its series are found in its folder (searched recursively); files there
+that cannot be read are skipped with a note, other series and objects are ignored.
+
 What is detected, and what happens
 ----------------------------------
 Errors (:class:`AnatomeshError`, naming the file or folder, the problem and what to do):
@@ -39,6 +43,7 @@ Errors (:class:`AnatomeshError`, naming the file or folder, the problem and what
 
 Warnings (``volume.warnings``; the volume is still read):
 
+* what pydicom itself warns about a header (one note per message, naming the file);
 * files that are not DICOM (skipped), DICOM objects that are not volume slices (DICOMDIR,
   structured reports, RT structure sets, presentation states, multi-frame objects, images
   without a patient position: skipped with a note);
@@ -66,7 +71,9 @@ from ..model.volume import Volume
 from .dicom_geometry import series_geometry
 from .dicom_pixels import read_series, transfer_syntax
 from .dicom_sop import segmentation_kind
-from .dicom_values import file_names, first_float, float_or, int_or, short_error, text_of
+from .library_messages import reason
+from .dicom_values import file_names, first_float, float_or, int_or, rel_path, text_of
+from .library_messages import WarningLog, collect, notes_of_library
 
 PathLike = Union[str, os.PathLike]
 
@@ -112,6 +119,7 @@ def list_series(path_or_paths: Union[PathLike, Sequence[PathLike]],
     return [info for info, _ in _scan(path_or_paths, progress).series]
 
 
+@notes_of_library
 def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
                progress: Optional[Progress] = None, scan=None) -> Volume:
     """Read one DICOM image series into an LPS :class:`Volume` (see the module docstring).
@@ -119,8 +127,9 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
     Parameters
     ----------
     path_or_paths : path or list of paths
-        A folder (searched recursively), one file (its folder is read and its series chosen) or
-        a list of files and folders.
+        A folder (searched recursively), one image slice (the slices of its series are found in
+        its folder, searched recursively; damaged files there are skipped with a note) or a list
+        of files and folders.
     series : int or str, optional
         Needed when several image series are found: a 1-based index into :func:`list_series`
         order, else a SeriesNumber, else a SeriesInstanceUID (tried in that order).
@@ -137,7 +146,13 @@ def read_dicom(path_or_paths: Union[PathLike, Sequence[PathLike]], series=None,
     """
     scan = scan or _scan(path_or_paths, sub(progress, 0.0, 0.3))  # scan: from scan_dicom, if done
     info, headers = _choose(scan, series)
-    order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
+    try:
+        order, affine, step, geo_warnings = series_geometry(info.files, headers, scan.source)
+    except AnatomeshError as err:
+        if not scan.unreadable:
+            raise
+        raise AnatomeshError(f"{err.message}; {unreadable_note(scan.unreadable, scan.source)}",
+                             err.path) from None
     files = [info.files[i] for i in order]
     headers = [headers[i] for i in order]
     slope = np.array([float_or(h, "RescaleSlope", 1.0) for h in headers])
@@ -155,59 +170,152 @@ class _Scan:
     series: List[Tuple[SeriesInfo, list]]         # (info, headers) in choice order
     notes: List[str]                              # skipped files, one line per kind
     preferred: Optional[int] = None               # series of the single file given, if any
-    objects: List[Tuple[Path, object]] = field(default_factory=list)  # SEG/RTSTRUCT (issue 14)
+    objects: List[Tuple[Path, object]] = field(default_factory=list)  # SEG/RTSTRUCT objects
+    unreadable: List[Tuple[Path, str, str]] = field(default_factory=list)  # (path, why, series uid)
+    library: List[str] = field(default_factory=list)  # what pydicom said about the headers (also in notes)
 
 
-def _scan(path_or_paths, progress) -> _Scan:
-    files, source, single = _collect_files(path_or_paths)
+def _scan(path_or_paths, progress, tolerant: bool = False) -> _Scan:
+    """Read every header; group image slices by series. ``tolerant``: unreadable or damaged files
+    are skipped (listed in ``.unreadable``) instead of stopping the scan, and finding no image
+    series is not an error (a folder searched for a referenced series)."""
+    if isinstance(path_or_paths, (str, os.PathLike)) and Path(path_or_paths).is_file():
+        return _scan_single(Path(path_or_paths), progress)
+    files, source = _collect_files(path_or_paths)
     if not files:
         raise AnatomeshError("the folder is empty; give the folder that holds the DICOM slices",
                              source)
     groups: Dict[object, list] = defaultdict(list)
     skipped: Dict[str, List[Path]] = defaultdict(list)
     objects: List[Tuple[Path, object]] = []
+    unreadable: List[Tuple[Path, str, str]] = []
+    log = WarningLog()
     for n, path in enumerate(files):
-        ds, kind = _read_header(path)
+        report(progress, n / len(files), f"reading DICOM headers {n + 1}/{len(files)}")
+        ds, kind, damaged, file_log = _header_of(path, tolerant)
+        if damaged:
+            unreadable.append((path, damaged, text_of(ds, "SeriesInstanceUID") if ds is not None else ""))
+            continue
+        log.merge(file_log)
         if ds is not None and segmentation_kind(ds):  # DICOM SEG / RTSTRUCT: kept apart (and noted)
             objects.append((path, ds))
-        if ds is not None:
-            kind = _object_kind(ds, path)
         if kind:
             skipped[kind].append(path)
         else:
             groups[_series_key(ds)].append((path, ds))
-        report(progress, (n + 1) / len(files), f"reading DICOM headers {n + 1}/{len(files)}")
     notes = [f"skipped {len(ps)} {kind}: {file_names(ps, source)}" for kind, ps in skipped.items()]
-    if not groups and not objects:
+    if not groups and not objects and not tolerant:
         found = "; ".join(f"{len(ps)} {kind}" for kind, ps in skipped.items())
         raise AnatomeshError(f"no DICOM image series found among {len(files)} file(s) ({found}); "
                              "give the folder that holds the image slices", source)
+    report(progress, 1.0, "DICOM headers read")
+    return _Scan(source, _sorted_series(groups), notes + log.notes(), None, objects, unreadable, log.notes())
+
+
+def _header_of(path: Path, tolerant: bool):
+    """(header or None, why it is skipped or "", why it is damaged or "", pydicom's messages about
+    it as a :class:`WarningLog`). ``damaged`` is only ever set when ``tolerant`` (else raised); the
+    header is then what could be read of it, or None."""
+    log, ds = WarningLog(), None
+    try:
+        with collect(log, path):
+            ds, kind = _read_header(path)
+            if ds is not None:
+                _convert_values(ds)
+                kind = _object_kind(ds, path)
+    except AnatomeshError as err:
+        if not tolerant:
+            raise
+        return ds, "", err.message, log
+    return ds, kind, "", log
+
+
+def _convert_values(ds) -> None:
+    """Convert the top-level values (not sequences) now, while pydicom's complaints about them can
+    still be said to be about this file; a value pydicom cannot convert is left as it is (it is an
+    error only if it is ever used)."""
+    for tag in list(ds.keys()):
+        if getattr(ds.get_item(tag), "VR", None) == "SQ":
+            continue
+        try:
+            ds[tag]
+        except Exception:  # pydicom raises many kinds for malformed private values
+            pass
+
+
+def _sorted_series(groups: Dict[object, list]) -> List[Tuple[SeriesInfo, list]]:
     series = [(_series_info(members), [ds for _, ds in members]) for members in groups.values()]
     series.sort(key=lambda s: (s[0].number is None, s[0].number or 0, s[0].description, s[0].uid))
-    preferred = None
-    if single is not None:
-        preferred = next((n for n, (info, _) in enumerate(series) if single in info.files), None)
-    return _Scan(source, series, notes, preferred, objects)
+    return series
 
 
-def scan_dicom(path_or_paths, progress: Optional[Progress] = None):
+def _scan_single(path: Path, progress) -> _Scan:
+    """One image slice given: the slices of its series in its folder (searched recursively).
+
+    The given file is read strictly (its problems are errors naming it); its siblings are read
+    only to find the other slices of its series: a damaged file whose header still names that
+    series is an error naming it (the series cannot be read whole), other unreadable files are
+    skipped with a note, other series and objects are left alone."""
+    ds = single_header(path)
+    kind = _object_kind(ds, path)
+    if segmentation_kind(ds) or kind:
+        what = segmentation_kind(ds) or kind.replace("(s)", "")
+        raise AnatomeshError(f"this file is a {what}, not a slice of an image series; give a CT/MR "
+                             "slice, its folder, or load() the segmentation object", path)
+    key, uid = _series_key(ds), text_of(ds, "SeriesInstanceUID")
+    members, unreadable, log = [(path, ds)], [], WarningLog()
+    siblings = [q for q in _walk(path.parent) if q != path]
+    for n, q in enumerate(siblings):
+        report(progress, n / max(1, len(siblings)), f"reading DICOM headers {n + 1}/{len(siblings)}")
+        other, kind, damaged, file_log = _header_of(q, tolerant=True)
+        same = other is not None and bool(uid) and text_of(other, "SeriesInstanceUID") == uid
+        if damaged and same:
+            raise AnatomeshError(f"{damaged} (it belongs to the series of {path.name})", q)
+        if damaged:
+            unreadable.append((q, damaged, ""))
+        elif other is not None and not kind and _series_key(other) == key:
+            log.merge(file_log)
+            members.append((q, other))
+    members.sort(key=lambda m: str(m[0]))
+    notes = log.notes() + ([unreadable_note(unreadable, path.parent)] if unreadable else [])
+    return _Scan(path.parent, _sorted_series({key: members}), notes, 0, [], unreadable, log.notes())
+
+
+def unreadable_note(unreadable: List[Tuple[Path, str, str]], source: Path) -> str:
+    """One line naming the damaged files skipped beside the file given, and the first reason."""
+    first, why = unreadable[0][:2]
+    return (f"skipped {len(unreadable)} unreadable file(s) in {source.name or source}: "
+            f"{file_names([u[0] for u in unreadable], source)} ({rel_path(first, source)}: {why})")
+
+
+def single_header(path: Path):
+    """The header of one DICOM file given by the user; an error naming it when it is not DICOM
+    or cannot be read."""
+    ds, why = _read_header(path)
+    if ds is None:
+        what = "an empty file (0 bytes)" if why.startswith("empty") else "not a DICOM file"
+        raise AnatomeshError(f"{what}; give a DICOM file or the folder of a DICOM series", path)
+    return ds
+
+
+def scan_dicom(path_or_paths, progress: Optional[Progress] = None, tolerant: bool = False):
     """Headers of a folder (or list): ``.series`` [(SeriesInfo, headers)] in choice order,
-    ``.objects`` [(path, header)] of the DICOM SEG / RTSTRUCT objects, ``.notes``, ``.source``."""
-    return _scan(path_or_paths, progress)
+    ``.objects`` [(path, header)] of the DICOM SEG / RTSTRUCT objects, ``.notes``, ``.source``,
+    ``.unreadable`` [(path, why, series uid or "")] (``tolerant``: damaged files skipped, not errors),
+    ``.library`` (what pydicom said about the headers, one note per message)."""
+    return _scan(path_or_paths, progress, tolerant)
 
 
-def _collect_files(path_or_paths) -> Tuple[List[Path], Path, Optional[Path]]:
-    """(files, folder named in messages, the single file given or None)."""
+def _collect_files(path_or_paths) -> Tuple[List[Path], Path]:
+    """(files, folder named in messages) of a folder or a list of files and folders."""
     if isinstance(path_or_paths, (str, os.PathLike)):
         p = Path(path_or_paths)
         if not p.exists():
             raise AnatomeshError("no such file or folder; check the path", p)
-        if p.is_file():
-            return _walk(p.parent), p.parent, p
-        return _walk(p), p, None
+        return _walk(p), p
     paths = [Path(q) for q in path_or_paths]
     if not paths:
-        raise AnatomeshError("no DICOM files given (empty list)")
+        raise AnatomeshError("no DICOM files given (empty list); give a DICOM folder or files")
     files: List[Path] = []
     for q in paths:
         if not q.exists():
@@ -217,7 +325,7 @@ def _collect_files(path_or_paths) -> Tuple[List[Path], Path, Optional[Path]]:
         source = Path(os.path.commonpath([str(q if q.is_dir() else q.parent) for q in paths]))
     except ValueError:  # different drives
         source = paths[0].parent
-    return files, source, None
+    return files, source
 
 
 def _walk(folder: Path) -> List[Path]:
@@ -244,8 +352,8 @@ def _read_header(path: Path):
     claims = path.suffix.lower() in DICOM_SUFFIXES
     if size == 0:
         if claims:
-            raise AnatomeshError("empty file (0 bytes) among the DICOM slices: an incomplete copy; "
-                                 "copy the series again or delete the file", path)
+            raise AnatomeshError("empty file (0 bytes) named like a DICOM file: an incomplete copy; "
+                                 "copy it again or delete it", path)
         return None, "empty file(s)"
     marker = len(head) == 132 and head[128:132] == b"DICM"
     # without the marker, a bare DICOM data set starts with a group 0002 or 0008 tag
@@ -258,7 +366,7 @@ def _read_header(path: Path):
         ds = pydicom.dcmread(path, stop_before_pixels=True, force=not marker)
     except Exception as err:  # pydicom raises many kinds on damaged input
         if marker or claims:
-            raise AnatomeshError(f"damaged DICOM file, its header cannot be read ({short_error(err)}); "
+            raise AnatomeshError(f"damaged DICOM file, its header cannot be read ({reason(err)}); "
                                  "copy it again or remove it", path) from None
         return None, "file(s) that are not DICOM"
     if not marker and not any(k in ds for k in ("SOPClassUID", "Modality", "Rows")):
@@ -321,7 +429,8 @@ def _choose(scan: _Scan, series) -> Tuple[SeriesInfo, list]:
     found = scan.series
     if not found:
         raise AnatomeshError("no DICOM image series here, only segmentation objects (SEG/RTSTRUCT); "
-                             "`anatomesh inspect` lists them", scan.source)
+                             "pick one with --series N (`anatomesh inspect` lists them) or give the image "
+                             "series' folder", scan.source)
     if series is None or (isinstance(series, str) and not series.strip()):
         if len(found) == 1:
             return found[0]

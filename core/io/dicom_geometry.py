@@ -29,7 +29,8 @@ def series_geometry(files: List[Path], headers: list, source: Path):
     normal = np.cross(row, col)
     normal /= np.linalg.norm(normal)
     if len(files) < 2:
-        raise AnatomeshError("the series has a single slice; a volume needs at least 2", files[0])
+        raise AnatomeshError("the series has a single slice; a volume needs at least 2: give the folder "
+                             "that holds the whole series", files[0])
     pos = np.array([floats(d, "ImagePositionPatient", 3, p) for p, d in zip(files, headers)])
     t = pos @ normal  # position along the normal
     order = np.argsort(t, kind="stable")
@@ -63,10 +64,12 @@ def _in_plane_axes(files, headers, source):
     _same_numbers(files, spacing, 1e-4 * spacing.max(), "pixel spacings", source)
     dy, dx = spacing[0]  # PixelSpacing = (between rows, between columns)
     if dx <= 0 or dy <= 0:
-        raise AnatomeshError(f"PixelSpacing {spacing[0].tolist()} is not positive", files[0])
+        raise AnatomeshError(f"PixelSpacing {spacing[0].tolist()} is not positive: the header is "
+                             "damaged; export the series again", files[0])
     row, col = iop[0, :3], iop[0, 3:]
     if min(np.linalg.norm(row), np.linalg.norm(col)) < 1e-6:
-        raise AnatomeshError("ImageOrientationPatient has a zero vector", files[0])
+        raise AnatomeshError("ImageOrientationPatient has a zero vector: the header is damaged; "
+                             "export the series again", files[0])
     row, col = row / np.linalg.norm(row), col / np.linalg.norm(col)
     angle = math.degrees(math.acos(max(-1.0, min(1.0, float(row @ col)))))
     warnings = []

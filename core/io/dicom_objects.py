@@ -6,6 +6,10 @@ prints). Without ``series=``, a folder holding one segmentation object gives tha
 note saying so); ``series=`` picks by the 1-based number in the listing (image series first, then
 segmentation objects), a SeriesNumber, a SeriesInstanceUID or an object's SOPInstanceUID.
 
+One file given (a SEG, an RTSTRUCT or an image slice) is read alone: its folder is searched only
+for its referenced series (or the other slices of its series), and files there that cannot be read
+are skipped (named in a note when the series was not found whole), never an error.
+
 A SEG or RTSTRUCT is meshed on the grid of its referenced image series when that series is found
 beside it (by SeriesInstanceUID, else by FrameOfReferenceUID: archives crop and re-number series),
 so the surfaces land on the CT voxel for voxel; otherwise (``grid="native"``, or the series absent
@@ -22,10 +26,11 @@ import numpy as np
 
 from ..model.errors import AnatomeshError
 from ..model.progress import Progress, sub
-from .dicom import read_dicom, scan_dicom
+from .dicom import read_dicom, scan_dicom, single_header, unreadable_note
 from .dicom_geometry import series_geometry
 from .dicom_sop import segmentation_kind
 from .dicom_values import floats, int_or, text_of
+from .library_messages import add_notes
 
 GRID_IMAGE, GRID_NATIVE = "image", "native"
 #: attributes of the source kept for writing surfaces back into its study (never reported)
@@ -41,7 +46,9 @@ class ReferenceGrid:
     ``affine`` (4x4, LPS, voxel (column, row, slice) → mm) and ``shape`` when its slices form a
     volume; ``plane`` (dict: ``origin``, ``row``, ``col`` unit vectors, ``spacing`` (dx, dy) mm,
     ``size`` (cols, rows), ``positions`` (n, 3)) for any slice found, even a lone one; ``note``
-    says what was found or missing; ``header`` is one of its headers (or None)."""
+    says what was found or missing; ``header`` is one of its headers (or None); ``incomplete``
+    says which of the images the object references are missing or were unreadable ("" when all
+    were found)."""
 
     affine: Optional[np.ndarray] = None
     shape: Optional[Tuple[int, int, int]] = None
@@ -50,18 +57,23 @@ class ReferenceGrid:
     header: object = None
     series_uid: str = ""
     files: List[Path] = field(default_factory=list)
+    incomplete: str = ""
 
 
 def read_dicom_any(path, series=None, grid: Optional[str] = None, progress: Optional[Progress] = None):
-    """Read what a DICOM path holds (see the module docstring): a Volume or a Segmentation."""
-    single = not isinstance(path, (list, tuple)) and Path(path).is_file()
-    if single:
-        ds = _header(Path(path))
-        kind = segmentation_kind(ds) if ds is not None else ""
+    """Read what a DICOM path holds (see the module docstring): a Volume or a Segmentation.
+
+    One file given: only that file is read. An image slice gives its series (found in its
+    folder); a SEG or RTSTRUCT gives its structures, its referenced series being looked up in
+    its folder only when the grid needs it (damaged or unrelated files there are skipped)."""
+    if not isinstance(path, (list, tuple)) and Path(path).is_file():
+        p = Path(path)
+        ds = single_header(p)
+        kind = segmentation_kind(ds)
         if not kind:
-            return _with_reference(read_dicom(path, series=series, progress=progress), ds)
-        scan = scan_dicom(Path(path).parent, sub(progress, 0.0, 0.3))
-        return read_object(Path(path), ds, kind, scan, grid, [], progress)
+            return _with_reference(read_dicom(p, series=series, progress=progress), ds)
+        return read_object(p, ds, kind, lambda: scan_dicom(p.parent, sub(progress, 0.0, 0.3), tolerant=True),
+                           grid, [], progress)
     scan = scan_dicom(path, sub(progress, 0.0, 0.3))
     if not scan.objects:
         return _with_series_reference(read_dicom(path, series=series, progress=progress, scan=scan), scan)
@@ -78,23 +90,27 @@ def read_dicom_any(path, series=None, grid: Optional[str] = None, progress: Opti
                      + (f"; --series {others[0]['number']} meshes the image series instead" if others else ""))
     p = Path(pick["path"])
     ds = dict((q, d) for q, d in scan.objects)[p]
-    return read_object(p, ds, pick["kind"], scan, grid, notes, progress)
+    out = read_object(p, ds, pick["kind"], scan, grid, notes, progress)
+    add_notes(out, scan.library)
+    return out
 
 
 def read_object(path: Path, header, kind: str, scan, grid, notes: List[str],
                 progress: Optional[Progress] = None):
-    """Read one SEG or RTSTRUCT with the referenced grid looked up in ``scan``."""
-    ref = reference_grid(scan, header, kind)
+    """Read one SEG or RTSTRUCT with the referenced grid looked up in ``scan`` (a folder scan,
+    or a function returning one, called only when the grid needs the referenced series)."""
     if grid not in (None, "", GRID_IMAGE, GRID_NATIVE):
-        raise AnatomeshError(f"--grid {grid!r}: for a DICOM {kind} use 'image' (the referenced series) "
-                             "or 'native' (the object's own planes)", path)
+        raise AnatomeshError(f"--grid {grid!r} is not a grid for a DICOM {kind}: use 'image' (the "
+                             "referenced series) or 'native' (the object's own planes)", path)
+    own_only = grid == GRID_NATIVE and kind.startswith("SEG")  # a SEG's own grid needs no image
+    ref = ReferenceGrid() if own_only else reference_grid(scan() if callable(scan) else scan, header, kind)
     if grid == GRID_IMAGE and ref.affine is None:
-        raise AnatomeshError(f"--grid image: {ref.note}; leave --grid out to mesh on the object's own "
-                             "geometry", path)
+        raise AnatomeshError(f"--grid image cannot be used: {ref.note}; leave --grid out to mesh on "
+                             "the object's own geometry", path)
     use_image = grid != GRID_NATIVE and ref.affine is not None
     if kind.startswith("SEG"):
         from .dicom_seg import read_seg
-        out = read_seg(path, ref, use_image, sub(progress, 0.3, 1.0))
+        out = read_seg(path, ref, use_image, sub(progress, 0.3, 1.0), explicit=grid == GRID_IMAGE)
     else:
         from .rtstruct import read_rtstruct
         out = read_rtstruct(path, ref, use_image, sub(progress, 0.3, 1.0))
@@ -183,15 +199,6 @@ def _check_one_study(scan) -> None:
                              "folder (or files) of one study", scan.source)
 
 
-def _header(p: Path):
-    import pydicom
-
-    try:
-        return pydicom.dcmread(p, stop_before_pixels=True, force=True)
-    except Exception:  # not DICOM: read_dicom gives the one-line error
-        return None
-
-
 # -- the referenced image series -------------------------------------------------------------------
 def referenced_series_uids(ds, kind: str) -> List[str]:
     """SeriesInstanceUIDs an object points at (SEG: ReferencedSeriesSequence; RTSTRUCT: the
@@ -216,30 +223,80 @@ def frame_of_reference(ds) -> str:
 
 
 def reference_grid(scan, ds, kind: str) -> ReferenceGrid:
-    """Find the referenced series among the scanned ones and build its grid (see ReferenceGrid)."""
+    """Find the referenced series among the scanned ones and build its grid (see ReferenceGrid).
+
+    Files the scan skipped as unreadable are named in the note when the series was not found
+    whole (they may have been its slices)."""
+    ref = _find_reference(scan, ds, kind)
+    if ref.series_uid:
+        ref.incomplete = _missing_images(scan, ds, kind, ref)
+    lost = ref.affine is None or ref.incomplete
+    if scan.unreadable and lost:
+        ref.incomplete = "; ".join(t for t in (ref.incomplete, unreadable_note(scan.unreadable, scan.source)) if t)
+    if ref.incomplete:
+        ref.note = "; ".join(t for t in (ref.note, ref.incomplete) if t)
+    return ref
+
+
+def _missing_images(scan, ds, kind: str, ref: ReferenceGrid) -> str:
+    """How many of the images the object references by SOPInstanceUID, in the series found under
+    its own SeriesInstanceUID, are not among the scanned files ("" when none, or when the series
+    was matched by frame of reference only)."""
+    if ref.series_uid not in referenced_series_uids(ds, kind):
+        return ""
+    wanted = referenced_instances(ds, kind)
+    have = {text_of(h, "SOPInstanceUID") for info, headers in scan.series if info.uid == ref.series_uid
+            for h in headers}
+    missing = wanted - have
+    if not missing:
+        return ""
+    return (f"{len(missing)} of the {len(wanted)} images the {kind} references are not among the readable "
+            f"files of series …{ref.series_uid[-12:]}")
+
+
+def referenced_instances(ds, kind: str) -> set:
+    """SOPInstanceUIDs of the images an object references (SEG: ReferencedSeriesSequence's
+    instances; RTSTRUCT: the contour images of its referenced series)."""
+    if kind.startswith("SEG"):
+        return {text_of(i, "ReferencedSOPInstanceUID") for s in ds.get("ReferencedSeriesSequence", [])
+                for i in s.get("ReferencedInstanceSequence", [])} - {""}
+    out = set()
+    for fr in ds.get("ReferencedFrameOfReferenceSequence", []):
+        for st in fr.get("RTReferencedStudySequence", []):
+            for se in st.get("RTReferencedSeriesSequence", []):
+                out |= {text_of(i, "ReferencedSOPInstanceUID") for i in se.get("ContourImageSequence", [])}
+    return out - {""}
+
+
+def _find_reference(scan, ds, kind: str) -> ReferenceGrid:
     wanted = [u for u in referenced_series_uids(ds, kind) if u]
     for_uid = frame_of_reference(ds)
     found = [s for s in scan.series if s[0].uid in wanted]
     shown = f"…{wanted[0][-12:]}" if wanted else "(none named)"
+    own = f"the grid was built from the {kind}'s own geometry"
     if found:
         note = ""
     else:
         found = [s for s in scan.series if for_uid and text_of(s[1][0], "FrameOfReferenceUID") == for_uid]
         if not found:
-            return ReferenceGrid(note=f"the referenced image series {shown} is not here: the grid was "
-                                      f"built from the {kind}'s own geometry")
+            return ReferenceGrid(note=f"the referenced image series {shown} is not here: {own}")
         note = (f"the referenced series {shown} is not here; series …{found[0][0].uid[-12:]} shares its "
                 "frame of reference and was used for the grid")
     info, headers = found[0]
+    try:
+        plane = _plane(info.files, headers)
+    except AnatomeshError as err:
+        return ReferenceGrid(note=(note + "; " if note else "") + f"its slices cannot be placed "
+                                  f"({err.message}): {own}")
     ref = ReferenceGrid(note=note, header=headers[0], series_uid=info.uid, files=list(info.files),
-                        plane=_plane(info.files, headers))
+                        plane=plane)
     try:
         order, affine, _, _ = series_geometry(info.files, headers, scan.source)
         ref.affine, ref.shape = affine, (info.cols, info.rows, len(info.files))
     except AnatomeshError as err:
         ref.note = (note + "; " if note else "") + (
-            f"its slices do not form a volume ({err.message}): the grid was built from the {kind}'s own "
-            "geometry" + (" and that slice's plane" if len(info.files) == 1 else ""))
+            f"its slices do not form a volume ({err.message}): {own}"
+            + (" and that slice's plane" if len(info.files) == 1 else ""))
     return ref
 
 

@@ -19,7 +19,8 @@ from pydicom.pixels import get_decoder, pixel_array
 from ..model.errors import AnatomeshError
 from ..model.progress import report
 from ..model.volume import check_fits_in_memory
-from .dicom_values import int_or, short_error
+from .library_messages import reason
+from .dicom_values import int_or
 
 # transfer syntax → the pip package(s) whose pydicom plug-in decodes it
 
@@ -61,7 +62,8 @@ def read_pixels(files: List[Path], headers: list, source: Path, progress) -> np.
         arr = _decode(path, ds)
         if arr.shape != (rows, cols):
             raise AnatomeshError(f"the pixel array has shape {arr.shape}, expected "
-                                 f"({rows}, {cols}): not a greyscale slice like the others", path)
+                                 f"({rows}, {cols}): not a greyscale slice like the others; remove it from "
+                                 "the series' folder", path)
         if stack is None:
             stack = np.empty((n_k, rows, cols), arr.dtype)
         elif arr.dtype != stack.dtype:
@@ -124,20 +126,26 @@ def _check_decoders(files, headers, source):
     seen = set()
     for path, ds in zip(files, headers):
         ts = transfer_syntax(ds)
-        if ts in seen:
-            continue
-        seen.add(ts)
-        try:
-            decoder = get_decoder(ts)
-        except NotImplementedError:
-            raise AnatomeshError(f"the pixel data is stored as {ts.name} ({ts}), which pydicom "
-                                 "cannot decode; convert the series to uncompressed DICOM first "
-                                 "(e.g. dcmtk's dcmdjpeg or gdcmconv --raw)", path) from None
-        if not decoder.is_available:
-            package = _CODEC_PACKAGES.get(ts, "pylibjpeg pylibjpeg-openjpeg pylibjpeg-libjpeg")
-            raise AnatomeshError(f"the pixel data is compressed as {ts.name} ({ts}) and no "
-                                 f"decoder for it is installed; install one with 'pip install "
-                                 f"{package}' in the Python that runs Anatomesh", source)
+        if ts not in seen:
+            seen.add(ts)
+            require_decoder(ds, path, source)
+
+
+def require_decoder(ds, path: Path, named=None) -> None:
+    """Raise unless pydicom can decode ``ds``'s transfer syntax here: a syntax it cannot decode at
+    all names ``path``, a missing plug-in names ``named`` (default ``path``) and the pip package."""
+    ts = transfer_syntax(ds)
+    try:
+        decoder = get_decoder(ts)
+    except NotImplementedError:
+        raise AnatomeshError(f"the pixel data is stored as {ts.name} ({ts}), which pydicom "
+                             "cannot decode; convert the file to uncompressed DICOM first "
+                             "(e.g. dcmtk's dcmdjpeg or gdcmconv --raw)", path) from None
+    if not decoder.is_available:
+        package = _CODEC_PACKAGES.get(ts, "pylibjpeg pylibjpeg-openjpeg pylibjpeg-libjpeg")
+        raise AnatomeshError(f"the pixel data is compressed as {ts.name} ({ts}) and no "
+                             f"decoder for it is installed; install one with 'pip install "
+                             f"{package}' in the Python that runs Anatomesh", named or path)
 
 
 def _decode(path: Path, ds) -> np.ndarray:
@@ -148,7 +156,7 @@ def _decode(path: Path, ds) -> np.ndarray:
         full.file_meta.TransferSyntaxUID = transfer_syntax(full)
         return full.pixel_array
     except Exception as err:  # decoders raise many kinds on damaged data
-        raise AnatomeshError(f"cannot decode the pixel data ({short_error(err)}): the file is "
+        raise AnatomeshError(f"cannot decode the pixel data ({reason(err)}): the file is "
                              "truncated or damaged; copy it again", path) from None
 
 

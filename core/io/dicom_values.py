@@ -18,8 +18,8 @@ def floats(ds, keyword: str, n: int, path: Path) -> List[float]:
     except (TypeError, ValueError):
         values = []
     if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise AnatomeshError(f"missing or malformed {keyword} ({value!r}); the slice cannot be "
-                             "placed in 3D", path)
+        raise AnatomeshError(f"missing or malformed {keyword} ({value!r}), so the image cannot be "
+                             "placed in space; export the file again with its geometry", path)
     return values
 
 
@@ -54,11 +54,6 @@ def int_or(value, default):
 def text_of(ds, keyword: str) -> str:
     value = ds.get(keyword)
     return "" if value is None else str(value).strip()
-
-
-def short_error(err: Exception) -> str:
-    text = str(err).strip().splitlines()
-    return (text[0] if text else type(err).__name__)[:160]
 
 
 def rel_path(path: Path, source: Path) -> str:

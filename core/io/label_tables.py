@@ -94,7 +94,8 @@ def load_label_table(path, key: Optional[str] = None, values: Optional[Iterable[
         src = f"{p}#{chosen}" if chosen else str(p)
         return label_table_for(names, names), src
     if key is not None:
-        raise AnatomeshError(f"a table key ({key!r}) only applies to JSON files with several tables", p)
+        raise AnatomeshError(f"a table key ({key!r}) only applies to JSON files with several tables; "
+                             "drop the key", p)
     table = _parse_itksnap(text) or _parse_slicer_csv(text) or _parse_columns(text)
     table = {v: info for v, info in table.items() if v != 0}  # 0 is background
     if not table:
@@ -129,7 +130,7 @@ def _parse_json(text: str, p: Path, key, values, hint) -> Tuple[Dict[int, str], 
         raise AnatomeshError(f"no label table in this JSON; {_TABLE_HELP}", p)
     if key is not None:
         if key not in tables:
-            raise AnatomeshError(f"no table {key!r} in this file; it holds {', '.join(tables)}", p)
+            raise AnatomeshError(f"no table {key!r} in this file; choose one of {', '.join(tables)}", p)
         return tables[key], key
     return _pick_table(tables, values, hint, p)
 
@@ -442,7 +443,8 @@ def resolve_label_map(data: np.ndarray, path, *, labels=None, label_map: Optiona
 
 def _check_label_values(data: np.ndarray, p: Path, why: str) -> np.ndarray:
     if data.dtype.kind not in "biuf":
-        raise AnatomeshError(f"{why} but the voxels are of type {data.dtype}, not numbers", p)
+        raise AnatomeshError(f"{why} but the voxels are of type {data.dtype}, not numbers; give "
+                             "a label map of whole numbers", p)
     if data.dtype.kind == "f":
         bad = int(data.size - np.count_nonzero(np.isfinite(data)))
         if bad:
@@ -453,11 +455,13 @@ def _check_label_values(data: np.ndarray, p: Path, why: str) -> np.ndarray:
                                  "scan: read it without a label table", p)
     if data.size and data.min() < 0:
         raise AnatomeshError(f"{why} but the image has negative values (min {data.min():g}); a "
-                             "label map holds values >= 0: is this a scan?", p)
+                             "label map holds values >= 0: is this a scan? Then read it without a label "
+                             "table", p)
     values = distinct_values(data, limit=MAX_LABELS)
     if values is None:
         raise AnatomeshError(f"{why} but the image has more than {MAX_LABELS} distinct values; "
-                             "that is a scan, not a label map", p)
+                             "that is a scan, not a label map: read it without a label table", p)
     if values.size and values.max() > np.iinfo(np.int32).max:
-        raise AnatomeshError(f"label value {int(values.max())} is too large (limit 2^31-1)", p)
+        raise AnatomeshError(f"label value {int(values.max())} is too large (limit 2^31-1); "
+                             "renumber the labels", p)
     return values

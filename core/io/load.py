@@ -5,8 +5,12 @@ Dispatch by what the path is: a folder or list of NIfTI/NRRD files → binary ma
 per file (:mod:`.masks`); a folder or a list of files → DICOM (an image series, or the DICOM SEG /
 RTSTRUCT found there: :mod:`.dicom_seg`, :mod:`.rtstruct`); ``.nii``/``.nii.gz`` → NIfTI;
 ``.nrrd``/``.nhdr`` (including 3D Slicer's ``.seg.nrrd``) → NRRD; a single ``.dcm`` (or a file
-starting with the DICOM preamble) → that object: a SEG or RTSTRUCT itself, else its image series,
-read from its folder.
+starting with the DICOM preamble) → that object alone: a SEG or RTSTRUCT itself (its referenced
+image series looked up in its folder when the grid needs it), else the slices of its image series
+found in its folder; damaged or unrelated files beside it are skipped, never an error.
+
+Whatever pydicom, highdicom, nibabel or pynrrd print about a file while it is read becomes a
+one-line note in ``.warnings`` (:mod:`.library_messages`).
 
 What comes back: a label-map or scan :class:`Volume` when every structure fits one label map;
 a :class:`Segmentation` (``.layers``: label-map Volumes on one grid, ``.overlaps`` in mm³) when
@@ -22,6 +26,7 @@ from ..model.errors import AnatomeshError
 from ..model.progress import Progress
 from ..model.segmentation import Segmentation
 from ..model.volume import Volume
+from .library_messages import notes_of_library
 
 PathLike = Union[str, os.PathLike]
 
@@ -29,6 +34,7 @@ NIFTI_SUFFIXES = (".nii", ".nii.gz")
 NRRD_SUFFIXES = (".nrrd", ".nhdr")
 
 
+@notes_of_library
 def load(path: Union[PathLike, Sequence[PathLike]], *, series: Optional[str] = None,
          volume_index: Optional[int] = None, labels: Optional[PathLike] = None,
          label_map: Optional[bool] = None, space: Optional[str] = None,
@@ -72,7 +78,7 @@ def load(path: Union[PathLike, Sequence[PathLike]], *, series: Optional[str] = N
     from .masks import mask_files, read_masks
     if isinstance(path, (list, tuple)):
         if not path:
-            raise AnatomeshError("no files given")
+            raise AnatomeshError("no files given (empty list); give a file, a folder or a list of files")
         files = mask_files(path)
         if files:
             vol = read_masks(files, grid=grid, space=space, progress=progress)

@@ -6,9 +6,17 @@ same way (NIfTI or NRRD). Each file is read with the NIfTI/NRRD reader; then
 * the structure's name is the file name without its suffix (``aorta_true_lumen.nii.gz`` →
   ``aorta_true_lumen``), its colour the anatomical palette's
   (:func:`anatomesh.core.model.labels.label_table_for`);
-* a file whose values are not binary *and* span a wider range (negative values, values above 255,
-  or fractions: a CT or MR, e.g. ``ct.nii.gz``) is the image, not a mask: it is not meshed, but its
-  grid can be chosen; any other file with values other than 0 and 1 is an error;
+* each file's values decide what it is (:func:`classify`), and every choice other than a plain 0/1
+  mask is said in ``meta["notes"]`` with the file's name:
+
+  - 0/1 (or empty): a mask;
+  - 0/255 (8-bit exports): a mask, inside = value > 0;
+  - fractions within 0..1 (a probability map): a mask, inside = value >= 0.5;
+  - negative values, fractions beyond 1, or more distinct whole values than a label map holds
+    (a CT or MR, e.g. ``ct.nii.gz``): the image, not meshed, but its grid can be chosen; at most one;
+  - other whole values (a label map, or a piece of one holding 0 and one other value): refused,
+    naming the file;
+
 * masks on other grids are brought onto one grid by their affines (nearest neighbour, exact when
   the grids share a lattice): by default the finest grid among the masks (smallest voxel),
   else the one named by ``grid`` (a mask name, or ``"image"``); the common grid covers every
@@ -29,6 +37,7 @@ from ..model.labels import LabelInfo, label_table_for
 from ..model.progress import Progress, report
 from ..model.segmentation import Mask, Segmentation, crop_mask, segmentation_from_masks
 from ..model.volume import Volume
+from .label_tables import MAX_AUTO_LABELS, distinct_values, is_integer_valued
 
 MASK_SUFFIXES = (".nii.gz", ".nii", ".seg.nrrd", ".nrrd", ".nhdr")
 GRID_IMAGE = "image"
@@ -91,22 +100,7 @@ def read_masks(files: Sequence[Path], grid: Optional[str] = None, space: Optiona
     """
     files = [Path(f) for f in files]
     source = files[0].parent if len(files) > 1 or files[0].parent.is_dir() else files[0]
-    masks, image, warnings = [], None, []
-    for n, f in enumerate(files):
-        vol = _read(f)
-        space = space or vol.space
-        vol = vol.in_space(space) if vol.space != space else vol
-        kind = _kind(vol, f)
-        if kind == "image":
-            if image is not None:
-                raise AnatomeshError(f"two images among the masks ({image.meta['source_name']}, {f.name}); a "
-                                     "mask folder holds one binary mask per structure and at most one "
-                                     "scan: move one out", source)
-            vol.meta["source_name"] = f.name
-            image = vol
-        else:
-            masks.append((structure_name(f), vol))
-        report(progress, 0.8 * (n + 1) / len(files), f"reading {f.name}")
+    masks, image, space, warnings, notes = _sort_files(files, space, source, progress)
     if not masks:
         raise AnatomeshError("no binary masks found (only an image); give a folder of one "
                              "0/1 mask per structure", source)
@@ -126,11 +120,35 @@ def read_masks(files: Sequence[Path], grid: Optional[str] = None, space: Optiona
     meta = {"format": "masks", "source": str(source), "structures": len(placed),
             "image": str(files[0].parent / image.meta["source_name"]) if image is not None else None,
             "grid": grid_note, "resampled": resampled, "modality": "segmentation",
-            "notes": [f"{r['name']} ({'x'.join(map(str, r['from_shape']))} voxels): {r['how']} onto "
-                      f"{grid_note}" for r in resampled]}
+            "notes": notes + [f"{r['name']} ({'x'.join(map(str, r['from_shape']))} voxels): {r['how']} onto "
+                              f"{grid_note}" for r in resampled]}
     out = segmentation_from_masks(placed, shape, target, space, meta, warnings)
     report(progress, 1.0, "masks read")
     return out
+
+
+def _sort_files(files: List[Path], space: Optional[str], source: Path, progress):
+    """Read and classify every file: ``(masks [(name, bool Volume)], image Volume or None, space,
+    warnings, notes)``; the image's ``meta["source_name"]`` is its file name."""
+    masks, image, warnings, notes = [], None, [], []
+    for n, f in enumerate(files):
+        vol = _read(f)
+        space = space or vol.space
+        vol = vol.in_space(space) if vol.space != space else vol
+        kind, inside, note = classify(vol, f)
+        notes += [note] if note else []
+        warnings += [w if f.name in w else f"{f.name}: {w}" for w in vol.warnings]
+        if kind == "image":
+            if image is not None:
+                raise AnatomeshError(f"two images among the masks ({image.meta['source_name']}, {f.name}); a "
+                                     "mask folder holds one binary mask per structure and at most one "
+                                     "scan: move one out", source)
+            vol.meta["source_name"] = f.name
+            image = vol
+        else:
+            masks.append((structure_name(f), Volume(inside, vol.affine, vol.space, vol.meta, None, [])))
+        report(progress, 0.8 * (n + 1) / len(files), f"reading {f.name}")
+    return masks, image, space, warnings, notes
 
 
 def _read(f: Path) -> Volume:
@@ -141,19 +159,42 @@ def _read(f: Path) -> Volume:
     return read_nrrd(f, label_map=False)
 
 
-def _kind(vol: Volume, f: Path) -> str:
-    """"mask" (values within {0, 1}), "image" (a scan: negative, above 255 or fractional
-    values), or an error for other values."""
+#: fraction from which a voxel of a probability map (values within 0..1) is inside
+PROBABILITY_THRESHOLD = 0.5
+#: the "inside" value of 8-bit masks (0/255 exports), read as 1
+BYTE_MASK = 255
+
+
+def classify(vol: Volume, f: Path) -> Tuple[str, Optional[np.ndarray], str]:
+    """What a file of a mask folder is: ``("mask", inside, note)`` with ``inside`` bool (I, J, K),
+    or ``("image", None, note)``; ``note`` ("" for a plain 0/1 mask) names the file and the rule.
+    Raises for a label map of several structures (see the module docstring)."""
     d = vol.data
-    lo, hi = (d.min(), d.max()) if d.size else (0, 0)
-    whole = d.dtype.kind in "iub" or bool(np.all(np.mod(d, 1) == 0))
-    if whole and lo >= 0 and hi <= 1:
-        return "mask"
-    if lo < 0 or hi > 255 or not whole:
-        return "image"
-    raise AnatomeshError(f"values {lo:g}..{hi:g} in a mask folder: each mask must hold only 0 and 1 "
-                         "(one file per structure); split the label map into masks or mesh it "
-                         "on its own", f)
+    if d.size == 0:
+        return "mask", np.zeros(d.shape, bool), ""
+    lo, hi = float(d.min()), float(d.max())
+    whole = is_integer_valued(d)
+    values = distinct_values(d, limit=MAX_AUTO_LABELS) if whole and lo >= 0 else None
+    if lo < 0 or (not whole and hi > 1) or (whole and values is None):
+        return "image", None, (f"{f.name} was taken as the image, not a mask (values {lo:g}..{hi:g}: a scan); "
+                               "it is not meshed, --grid image meshes the masks on its grid")
+    if not whole:
+        return "mask", d >= PROBABILITY_THRESHOLD, (
+            f"{f.name} holds fractions within 0..1 (a probability map): voxels at or above "
+            f"{PROBABILITY_THRESHOLD:g} were taken as inside")
+    nonzero = values[values != 0]
+    if len(nonzero) == 0 or (len(nonzero) == 1 and nonzero[0] == 1):
+        return "mask", d != 0, ""
+    if len(nonzero) == 1 and nonzero[0] == BYTE_MASK:
+        return "mask", d != 0, (f"{f.name} holds the values 0 and {BYTE_MASK}: voxels of value {BYTE_MASK} "
+                                "(> 0) were taken as inside")
+    shown = ", ".join(f"{v:g}" for v in nonzero[:6]) + (", ..." if len(nonzero) > 6 else "")
+    what = (f"{len(nonzero)} different nonzero values ({shown}): a label map (or a low-bit scan), not the mask "
+            "of one structure" if len(nonzero) > 1 else
+            f"only the values 0 and {shown} (one label of a label map, not a 0/1 mask)")
+    raise AnatomeshError(f"holds {what}; each mask must hold only 0 and 1 (or 0 and {BYTE_MASK}): split a label "
+                         "map into one 0/1 mask per structure, load it on its own, or move it out of the mask "
+                         "folder", f)
 
 
 def _target_grid(masks, image, grid, source) -> Tuple[np.ndarray, Tuple[int, int, int], str]:

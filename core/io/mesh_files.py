@@ -16,6 +16,7 @@ import numpy as np
 
 from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh
+from .library_messages import reason
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj")
 _SPACE = re.compile(rb"SPACE=(RAS|LPS)")
@@ -147,12 +148,13 @@ def read_mesh(path) -> Mesh:
     except AnatomeshError as err:
         raise AnatomeshError(str(err), path) from None
     except (ValueError, IndexError, KeyError, UnicodeDecodeError) as exc:
-        raise AnatomeshError(f"cannot parse this {suffix[1:].upper()} file ({exc}); "
+        raise AnatomeshError(f"cannot parse this {suffix[1:].upper()} file ({reason(exc)}); "
                              f"re-export it from the tool that made it", path) from None
     if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise AnatomeshError("faces refer to vertices the file does not have: the file is corrupt", path)
+        raise AnatomeshError("faces refer to vertices the file does not have: the file is corrupt; "
+                             "export it again", path)
     if not np.all(np.isfinite(v)):
-        raise AnatomeshError("the file has NaN or infinite coordinates: it is corrupt", path)
+        raise AnatomeshError("the file has NaN or infinite coordinates: it is corrupt; export it again", path)
     return Mesh(v, f, name=path.stem, space=space, meta={"path": str(path)})
 
 
@@ -179,7 +181,8 @@ def _read_stl(data: bytes):
                              "it does not start with 'solid')")
     nums = re.findall(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)", data)
     if len(nums) % 3:
-        raise AnatomeshError("ASCII STL with a facet that has no three vertices: the file is cut off")
+        raise AnatomeshError("ASCII STL with a facet that has no three vertices: the file is cut off; "
+                             "export it again")
     pts = np.array(nums, dtype=np.float64).reshape(-1, 3)
     v, idx = weld(pts)
     v, f = split_nonmanifold(v, idx.reshape(-1, 3))
@@ -198,7 +201,8 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 def _read_ply(data: bytes):
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
-        raise AnatomeshError("not a PLY file (no 'ply' magic or no 'end_header')")
+        raise AnatomeshError("not a PLY file (no 'ply' magic or no 'end_header'); export it again "
+                             "as PLY")
     nl = data.find(b"\n", end)
     header = data[:nl].decode("ascii", "replace").splitlines()
     body = data[nl + 1:]

@@ -24,11 +24,13 @@ import numpy as np
 from ..model.errors import AnatomeshError
 from ..model.volume import Volume, check_fits_in_memory
 from ._reader_common import finish_volume
+from .library_messages import notes_of_library, reason
 
 #: NIfTI spatial units → factor to mm
 _TO_MM = {"mm": 1.0, "micron": 1e-3, "meter": 1e3}
 
 
+@notes_of_library
 def read_nifti(path, volume_index: Optional[int] = None, labels=None,
                label_map: Optional[bool] = None) -> Volume:
     """Read a ``.nii``/``.nii.gz`` file.
@@ -124,10 +126,11 @@ def _open(p: Path, nib):
     except FileNotFoundError:
         raise AnatomeshError("no such file; check the path", p) from None
     except Exception as err:  # nibabel raises ImageFileError, HeaderDataError, OSError, EOFError...
-        raise AnatomeshError(f"not a readable NIfTI file ({_reason(err)}); check that it is a "
+        raise AnatomeshError(f"not a readable NIfTI file ({reason(err)}); check that it is a "
                              "complete .nii/.nii.gz", p) from None
     if not isinstance(img, (nib.Nifti1Image, nib.Nifti2Image, nib.Nifti1Pair, nib.Nifti2Pair)):
-        raise AnatomeshError(f"not a NIfTI image (nibabel read it as {type(img).__name__})", p)
+        raise AnatomeshError(f"not a NIfTI image (nibabel read it as {type(img).__name__}); give a "
+                             ".nii/.nii.gz NIfTI file", p)
     return img
 
 
@@ -137,9 +140,9 @@ def _volume_shape(shape: Tuple[int, ...], volume_index: Optional[int], p: Path):
     while len(dims) > 4 and dims[-1] == 1:  # trailing singleton axes (e.g. X,Y,Z,1,1)
         dims.pop()
     if len(dims) < 2:
-        raise AnatomeshError(f"the image has shape {shape}; a volume needs at least 2 axes", p)
+        raise AnatomeshError(f"the image has shape {shape}; a volume needs at least 2 axes: give a 3D image", p)
     if any(d == 0 for d in dims):
-        raise AnatomeshError(f"the image has shape {shape}: it holds no voxels", p)
+        raise AnatomeshError(f"the image has shape {shape}: it holds no voxels; export it again", p)
     if len(dims) > 4:
         raise AnatomeshError(f"the image is {len(dims)}D, shape {shape} (a vector or tensor field?); "
                              "only 3D volumes and 4D series are supported", p)
@@ -153,11 +156,11 @@ def _volume_shape(shape: Tuple[int, ...], volume_index: Optional[int], p: Path):
                 f"volume_index (CLI --volume N, N from 0 to {n - 1})", p)
         if not 0 <= int(volume_index) < n:
             raise AnatomeshError(f"volume index {volume_index} is out of range: the image has shape "
-                                 f"{shape}, {n} volumes (0 to {n - 1})", p)
+                                 f"{shape}, {n} volumes: choose one from 0 to {n - 1}", p)
         return tuple(dims[:3]), int(volume_index)
     if volume_index not in (None, 0):
         raise AnatomeshError(f"volume index {volume_index} given but the image is {len(dims)}D, "
-                             f"shape {shape}, with a single volume", p)
+                             f"shape {shape}, with a single volume: leave the volume index out", p)
     return tuple(dims) + ((1,) if len(dims) == 2 else ()), None
 
 
@@ -180,9 +183,10 @@ def _read_voxels(proxy, index: Optional[int], shape3, p: Path, scaled: bool) -> 
             if scaled:
                 data = data.astype(np.float32)
     except MemoryError:
-        raise AnatomeshError(f"not enough memory to read a volume of shape {tuple(shape3)}", p) from None
+        raise AnatomeshError(f"not enough memory to read a volume of shape {tuple(shape3)}; close other "
+                             "programs or use a machine with more memory", p) from None
     except Exception as err:  # EOFError, zlib.error, OSError, ValueError from a truncated file
-        raise AnatomeshError(f"could not read the voxel data ({_reason(err)}): the file is "
+        raise AnatomeshError(f"could not read the voxel data ({reason(err)}): the file is "
                              "truncated or corrupt; export or download it again", p) from None
     return data
 
@@ -214,7 +218,3 @@ def _text(raw) -> str:
         return str(raw)
     return b.split(b"\x00", 1)[0].decode("latin-1").strip()
 
-
-def _reason(err: Exception) -> str:
-    text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-    return text if len(text) < 160 else text[:157] + "..."

@@ -39,6 +39,7 @@ from ..model.errors import AnatomeshError
 from ..model.volume import Volume, check_fits_in_memory
 from ..model.labels import LabelInfo
 from ._reader_common import finish_volume
+from .library_messages import notes_of_library, reason
 from .label_tables import distinct_values, label_dtype
 
 _SPACES = {
@@ -69,6 +70,7 @@ _TYPE_OF = {name: dt for dt, names in _TYPES.items() for name in names}
 _SEGMENT_FIELD = re.compile(r"^Segment(\d+)_(\w+)$")
 
 
+@notes_of_library
 def read_nrrd(path, labels=None, label_map: Optional[bool] = None) -> Volume:
     """Read a ``.nrrd``/``.nhdr`` file (``.seg.nrrd`` segmentations included).
 
@@ -113,7 +115,8 @@ def read_nrrd(path, labels=None, label_map: Optional[bool] = None) -> Volume:
 
     dtype = _TYPE_OF.get(str(header.get("type", "")).strip().lower())
     if dtype is None:
-        raise AnatomeshError(f"unsupported NRRD sample type {header.get('type')!r}", p)
+        raise AnatomeshError(f"unsupported NRRD sample type {header.get('type')!r}; convert it to an "
+                             "integer or float type", p)
     shape3 = tuple(sizes[a] for a in spatial)
     n_extra = sizes[extra] if extra is not None else 1
     out = np.dtype(np.float32) if dtype.kind == "f" else dtype
@@ -122,7 +125,8 @@ def read_nrrd(path, labels=None, label_map: Optional[bool] = None) -> Volume:
 
     data = _read_data(p, header, nrrd)
     if data.shape != tuple(sizes):
-        raise AnatomeshError(f"the data has shape {data.shape} but the header says sizes {tuple(sizes)}", p)
+        raise AnatomeshError(f"the data has shape {data.shape} but the header says sizes {tuple(sizes)}: "
+                             "the file is damaged; export it again", p)
     if extra is not None:
         data = np.moveaxis(data, extra, 0)
     else:
@@ -154,7 +158,7 @@ def _read_header(p: Path, nrrd) -> Dict:
     except FileNotFoundError:
         raise AnatomeshError("no such file; check the path", p) from None
     except Exception as err:  # NRRDError, UnicodeDecodeError, ValueError from malformed fields
-        raise AnatomeshError(f"not a readable NRRD header ({_reason(err)}); check that it is a "
+        raise AnatomeshError(f"not a readable NRRD header ({reason(err)}); check that it is a "
                              "complete .nrrd/.nhdr file", p) from None
 
 
@@ -164,9 +168,10 @@ def _read_data(p: Path, header: Dict, nrrd) -> np.ndarray:
             nrrd.read_header(fh)  # leaves fh at the start of attached data
             data = nrrd.read_data(header, fh, str(p), index_order="F")
     except MemoryError:
-        raise AnatomeshError("not enough memory to read the voxel data", p) from None
+        raise AnatomeshError("not enough memory to read the voxel data; close other programs or use a "
+                             "machine with more memory", p) from None
     except Exception as err:  # truncated gzip, missing detached file, size mismatch...
-        raise AnatomeshError(f"could not read the voxel data ({_reason(err)}): the file or its "
+        raise AnatomeshError(f"could not read the voxel data ({reason(err)}): the file or its "
                              "detached data file is truncated, missing or corrupt", p) from None
     return np.asarray(data)
 
@@ -186,7 +191,8 @@ def _axes(header: Dict, sizes: List[int], p: Path) -> Tuple[List[int], Optional[
     others = [a for a in range(n) if a not in spatial]
     if len(spatial) != 3 or len(others) > 1:
         raise AnatomeshError(f"the image has {len(spatial)} spatial axes (sizes {tuple(sizes)}, "
-                             f"kinds {kinds or 'not given'}); only 3D volumes are supported", p)
+                             f"kinds {kinds or 'not given'}); only 3D volumes are supported: give a 3D "
+                             "volume", p)
     return spatial, (others[0] if others else None)
 
 
@@ -197,12 +203,13 @@ def _affine(header: Dict, spatial: List[int], p: Path, warnings: List[str]):
     if space_key.endswith("-time") or space_key in ("rast", "last", "lpst") or (
             not space_raw and int(header.get("space dimension", 3)) != 3):
         raise AnatomeshError(f"time-varying or non-3D space {space_raw or header.get('space dimension')!r} "
-                             "is not supported", p)
+                             "is not supported; export a single 3D volume", p)
     affine = np.eye(4)
     if dirs is not None:
         rows = np.asarray(dirs, dtype=np.float64)
         if rows.ndim != 2 or rows.shape[1] != 3:
-            raise AnatomeshError(f"'space directions' must be 3-vectors, got {rows.shape}", p)
+            raise AnatomeshError(f"'space directions' must be 3-vectors, got {rows.shape}: the header is "
+                                 "damaged; fix it or export the file again", p)
         affine[:3, :3] = rows[spatial].T
         origin = header.get("space origin")
         if origin is not None:
@@ -218,13 +225,14 @@ def _affine(header: Dict, spatial: List[int], p: Path, warnings: List[str]):
         space = _SPACES[space_key]
         if dirs is None:
             raise AnatomeshError(f"space {space_raw!r} given without 'space directions'; the "
-                                 "header is incomplete", p)
+                                 "header is incomplete; export the file again", p)
     elif space_key in _NON_PATIENT_SPACES:
         space = "LPS"
         warnings.append(f"NRRD space {space_raw!r} does not name patient directions; its axes are "
                         "taken as LPS (as ITK does): check left/right")
     elif space_raw:
-        raise AnatomeshError(f"unknown NRRD space {space_raw!r}", p)
+        raise AnatomeshError(f"unknown NRRD space {space_raw!r}; use left-posterior-superior or "
+                             "right-anterior-superior", p)
     else:
         space = "LPS"
         what = ("'space directions' without a 'space' field" if dirs is not None else
@@ -244,9 +252,10 @@ def _affine(header: Dict, spatial: List[int], p: Path, warnings: List[str]):
             affine[:3, :] *= factors.pop()
             warnings.append(f"space units {list(units)} converted to mm")
     if not np.all(np.isfinite(affine)):
-        raise AnatomeshError("the geometry (space directions/origin) holds NaN or infinite numbers", p)
+        raise AnatomeshError("the geometry (space directions/origin) holds NaN or infinite numbers; "
+                             "fix the header", p)
     if abs(np.linalg.det(affine[:3, :3])) < 1e-12:
-        raise AnatomeshError("the space directions are degenerate (zero or parallel axes)", p)
+        raise AnatomeshError("the space directions are degenerate (zero or parallel axes); fix the header", p)
     return affine, space
 
 
@@ -304,7 +313,7 @@ def _merge_segments(layers: np.ndarray, segments: List[Dict], p: Path):
     for s in segments:
         if not 0 <= s["layer"] < n_layers:
             raise AnatomeshError(f"segment {s['name']!r} is in layer {s['layer']} but the file has "
-                                 f"{n_layers} layer(s)", p)
+                                 f"{n_layers} layer(s): the file is damaged; save it again from 3D Slicer", p)
     values = [s["label_value"] for s in segments]
     unique = len(set(values)) == len(values)
     if n_layers == 1 and unique:
@@ -349,8 +358,4 @@ def _check_overlap(layers: np.ndarray, segments: List[Dict], p: Path) -> None:
         "module, Export to files) or remove the overlap (Segment Editor, Masking: 'Overwrite other "
         "segments') and save again", p)
 
-
-def _reason(err: Exception) -> str:
-    text = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-    return text if len(text) < 160 else text[:157] + "..."
 

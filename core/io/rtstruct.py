@@ -29,7 +29,8 @@ from ..model.progress import Progress, report
 from ..model.segmentation import RoiContours, segmentation_from_masks
 from . import _contour_kernels as K
 from .contour_raster import contour_grid, in_plane_axes, rasterise_roi
-from .dicom_values import short_error, text_of
+from .library_messages import notes_of_library, reason
+from .dicom_values import text_of
 
 #: a contour point further than this from its plane (mm) makes the contour non-planar
 PLANE_TOLERANCE_MM = 0.05
@@ -37,6 +38,7 @@ PLANE_TOLERANCE_MM = 0.05
 NORMAL_TOLERANCE_DEG = 1.0
 
 
+@notes_of_library
 def read_rtstruct(path: Path, ref, use_image: bool, progress: Optional[Progress] = None):
     """Read an RTSTRUCT and rasterise its ROIs (see the module docstring).
 
@@ -49,13 +51,15 @@ def read_rtstruct(path: Path, ref, use_image: bool, progress: Optional[Progress]
     try:
         ds = pydicom.dcmread(path)
     except Exception as err:
-        raise AnatomeshError(f"cannot read this RTSTRUCT ({short_error(err)})", path) from None
+        raise AnatomeshError(f"damaged RTSTRUCT, it cannot be read ({reason(err)}); copy it again or "
+                             "export the structure set again", path) from None
     normal = None
     if ref is not None and ref.plane is not None:
         normal = np.cross(ref.plane["row"], ref.plane["col"])
     rois, warnings = read_rois(ds, path, normal)
     if not rois:
-        raise AnatomeshError("no ROI of this RTSTRUCT has a contour; nothing to mesh", path)
+        raise AnatomeshError("no ROI of this RTSTRUCT has a closed contour, so there is nothing to mesh; "
+                             "export the structure set with its contours", path)
     report(progress, 0.2, "rasterising contours")
     grid = contour_grid(rois, ref, use_image, path)
     masks = []
@@ -100,7 +104,8 @@ def read_rois(ds, path, normal: Optional[np.ndarray] = None) -> Tuple[List[RoiCo
                                      "is not closed; only CLOSED_PLANAR contours enclose a volume", path)
             if len(pts) < 3:
                 raise AnatomeshError(f"ROI {name!r}: a contour near z = {pts[:, 2].mean():.2f} mm has "
-                                     f"{len(pts)} point(s); a closed contour needs 3 or more", path)
+                                     f"{len(pts)} point(s); a closed contour needs 3 or more: fix it in the "
+                                     "planning system", path)
             contours.append(pts)
         if not contours:
             warnings.append(f"ROI {name!r} has no closed contour (empty or points only): skipped")
@@ -150,7 +155,7 @@ def _on_planes(found, normal: np.ndarray, path) -> List[RoiContours]:
             if off > PLANE_TOLERANCE_MM:
                 raise AnatomeshError(f"{where}: its points lie up to {off:.2f} mm off any slice plane "
                                      f"(normal {np.round(normal, 4).tolist()}); contours must be planar "
-                                     "and parallel", path)
+                                     "and parallel: fix it in the planning system", path)
             e, f = K.first_self_crossing(c @ u_axis, c @ v_axis, 1e-9)
             if e >= 0:
                 raise AnatomeshError(f"{where}: the contour crosses itself (edges {e + 1} and {f + 1} of "

@@ -148,7 +148,8 @@ def segmentation_from_masks(masks: Sequence[Mask], shape, affine, space: str,
     meta = dict(meta or {})
     warnings = list(warnings or [])
     if not masks:
-        raise AnatomeshError("no structure has any voxel set; nothing to mesh", meta.get("source"))
+        raise AnatomeshError("no structure has any voxel set, so there is nothing to mesh; check that the masks "
+                             "hold the segmentation (values > 0) or choose other structures", meta.get("source"))
     values = [int(m.info.value) for m in masks]
     if len(set(values)) != len(values) or min(values) < 1:
         raise ValueError(f"mask label values must be distinct and >= 1, got {values}")

@@ -131,6 +131,7 @@ def test_round_trip_label_map_to_highdicom_seg_and_back(tmp_path):
     source.sort(key=lambda d: float(d.ImagePositionPatient[2]))
     for d in source:
         d.SpecificCharacterSet = "ISO_IR 100"  # the CT leaves it empty; highdicom wants one
+        d.PatientName = f"{d.PatientName}^"  # a one-component name, said so (highdicom warns otherwise)
     lab = np.zeros((3, 512, 512), np.uint8)  # (frames, rows, cols)
     lab[:, 200:300, 150:260] = 1
     lab[1, 240:280, 300:360] = 2

@@ -98,8 +98,15 @@ def test_list_of_masks_and_resampling_by_nearest_neighbour(tmp_path):
 def test_bad_masks(tmp_path):
     m = np.zeros((8, 8, 8), np.uint8)
     m[2:5, 2:5, 2:5] = 2
+    m[2, 2, 2] = 1  # two structures in one file: a label map, not a mask
     _save(tmp_path / "liver.nii.gz", m)
-    with pytest.raises(AnatomeshError, match="only 0 and 1"):
+    with pytest.raises(AnatomeshError, match="liver.nii.gz: holds 2 different nonzero values") as err:
+        load(tmp_path)
+    assert "split a label map into one 0/1 mask per structure" in str(err.value) and "\n" not in str(err.value)
+    m[m > 0] = 3  # one value other than 1 (or 255): one label cut out of a label map, refused too
+    _save(tmp_path / "liver.nii.gz", m)
+    refused = r"liver.nii.gz: holds only the values 0 and 3 .*only 0 and 1 \(or 0 and 255\)"
+    with pytest.raises(AnatomeshError, match=refused):
         load(tmp_path)
     m[m > 0] = 1
     _save(tmp_path / "liver.nii.gz", m)
@@ -109,3 +116,55 @@ def test_bad_masks(tmp_path):
     assert [i.name for i in vol.labels.values()] == ["liver"]
     with pytest.raises(AnatomeshError, match="grid"):
         load(tmp_path, grid="no_such_structure")
+
+
+# -- masks that are not 0/1: used by a stated rule, refused, or the image, never dropped -----------------
+def _blob(shape=(12, 12, 12)):
+    m = np.zeros(shape, np.float32)
+    m[3:9, 3:9, 3:9] = 1.0
+    return m
+
+
+def _notes(vol):
+    return " | ".join(vol.meta["notes"])
+
+
+def test_probability_map_is_thresholded_at_one_half_with_a_note(tmp_path):
+    prob = _blob() * 0.9
+    prob[3:9, 3:9, 3] = 0.4  # below one half: outside
+    prob[3:9, 3:9, 8] = 0.5  # exactly one half: inside
+    _save(tmp_path / "liver.nii.gz", prob)
+    _save(tmp_path / "spleen.nii.gz", _blob().astype(np.uint8))
+    vol = load(tmp_path)
+    assert sorted(i.name for i in vol.labels.values()) == ["liver", "spleen"]  # not taken as "the image"
+    assert vol.meta["image"] is None
+    layer, v = _structure(vol, "liver")
+    np.testing.assert_array_equal(layer.data == v, prob >= 0.5)
+    assert int((layer.data == v).sum()) == 6 * 6 * 5
+    assert "liver.nii.gz holds fractions within 0..1 (a probability map): voxels at or above 0.5 were " \
+           "taken as inside" in _notes(vol)
+
+
+def test_0_255_mask_is_its_nonzero_voxels_with_a_note(tmp_path):
+    _save(tmp_path / "kidney_left.nii.gz", (_blob() * 255).astype(np.uint8))
+    vol = load(tmp_path)
+    layer, v = _structure(vol, "kidney_left")
+    assert int((layer.data == v).sum()) == 6 ** 3
+    assert "kidney_left.nii.gz holds the values 0 and 255: voxels of value 255 (> 0) were taken as inside" \
+        in _notes(vol)
+
+
+def test_only_a_real_scan_is_the_image_and_that_is_said(tmp_path):
+    ct = np.full((12, 12, 12), -1000, np.int16)
+    ct[2:10, 2:10, 2:10] = 40
+    _save(tmp_path / "ct.nii.gz", ct)
+    _save(tmp_path / "liver.nii.gz", _blob().astype(np.uint8))
+    vol = load(tmp_path)
+    assert vol.meta["image"].endswith("ct.nii.gz") and [i.name for i in vol.labels.values()] == ["liver"]
+    assert "ct.nii.gz was taken as the image, not a mask (values -1000..40: a scan)" in _notes(vol)
+    mr = np.random.default_rng(0).uniform(0, 900, (12, 12, 12)).astype(np.float32)  # fractions beyond 1
+    _save(tmp_path / "ct.nii.gz", mr)
+    assert load(tmp_path).meta["image"].endswith("ct.nii.gz")
+    _save(tmp_path / "mr.nii.gz", mr)
+    with pytest.raises(AnatomeshError, match="two images among the masks"):
+        load(tmp_path)

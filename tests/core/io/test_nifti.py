@@ -35,12 +35,29 @@ CASES = [
     ("pulmonary/ct_cropped.nii.gz", (122, 102, 112), (1.5, 1.5, 1.5), "LPS", None, None),
     ("pulmonary/heart.nii.gz", (233, 167, 191), (1.5, 1.5, 1.5), "LPS", 1, None),
     ("pulmonary/pulmonary_artery.nii.gz", (122, 102, 112), (1.5, 1.5, 1.5), "LPS", 1, None),
+    # TotalSegmentator --fast, both ways: the 40-label map, and one mask per class of the "total" task
+    ("fast_folder/example_seg_fast.nii.gz", (122, 101, 30), (3, 3, 3), "RAS", 40, "total"),
+    *[(f"fast_folder/example_seg_tissue_types/{m}.nii.gz", (122, 101, 30), (3, 3, 3), "RAS", 1, None)
+      for m in ("skeletal_muscle", "subcutaneous_fat", "torso_fat")],
 ]
+
+
+def _fast_masks():
+    """One case per mask of the --fast folder, named by TotalSegmentator's own statistics.json of
+    that run: one label when it gives the structure a volume, none (an empty mask) otherwise."""
+    stats = json.loads(shared(TS, "fast_folder", "example_seg_fast", "statistics.json").read_text())
+    return [(f"fast_folder/example_seg_fast/{name}.nii.gz", (122, 101, 30), (3, 3, 3), "RAS",
+             1 if facts["volume"] > 0 else 0, None) for name, facts in sorted(stats.items())]
+
+
+CASES += _fast_masks()
 
 
 def test_cases_cover_every_shared_nifti():
     found = {str(p.relative_to(SHARED_DATA / TS)) for p in (SHARED_DATA / TS).rglob("*.nii*")}
     assert found == {c[0] for c in CASES}
+    fast = [c for c in CASES if c[0].startswith("fast_folder/example_seg_fast/")]
+    assert len(fast) == 117 and sum(c[4] == 0 for c in fast) == 77  # 40 structures found, 77 empty
 
 
 @pytest.mark.parametrize("rel, shape, spacing, orient, n_labels, key", CASES, ids=[c[0] for c in CASES])
@@ -62,7 +79,7 @@ def test_real_nifti(rel, shape, spacing, orient, n_labels, key):
     # voxels unchanged, dtype kept (no scaling in these files)
     raw = np.asanyarray(img.dataobj)
     np.testing.assert_array_equal(vol.data, raw)
-    assert vol.warnings == []
+    assert vol.warnings == ([] if n_labels != 0 else ["the label map is empty (all voxels are 0, background)"])
     assert vol.meta["format"] == "NIfTI-1" and vol.meta["source"] == str(path)
     if n_labels is None:
         assert not vol.is_label_map and vol.labels is None
@@ -75,7 +92,7 @@ def test_real_nifti(rel, shape, spacing, orient, n_labels, key):
         table = json.loads(names_json.read_text())[key]
         assert vol.meta["label_table"].endswith(f"#{key}")
         assert all(info.name == table[str(v)] for v, info in vol.labels.items())
-    else:  # a binary mask is named after its file
+    elif n_labels:  # a binary mask is named after its file
         (info,) = vol.labels.values()
         assert info.value == 1 and info.name == rel.split("/")[-1][: -len(".nii.gz")]
 
