@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ..geometry.kernels import scalar_loop, triangle_cross
+from ..geometry.kernels import triangle_cross
 from ._filter_kernels import FAST
 
 
@@ -133,7 +133,6 @@ def vertex_moves(src, dst, faces, vf_offsets, vf, areas, lam, inside, outside, g
         sz = 0.0
         sa = 0.0
         for a in range(vf_offsets[i], vf_offsets[i + 1]):
-            scalar_loop()  # ~6 faces: faster than the vectorized loop's gathers
             f = vf[a]
             t = 0.5 * (lam[inside[f]] - lam[outside[f]])
             nx, ny, nz = triangle_cross(src, faces[f, 0], faces[f, 1], faces[f, 2])

@@ -4,10 +4,7 @@
 Layout: positions are "structure of arrays" P (3, N + 1) — a row per coordinate, column N zero
 (the pad) — and neighbours are padded columns ``cols`` (width, N) uint32 (column-major ELLPACK,
 see ``MeshStructure.padded``). The neighbour loop then has a fixed trip count and no branch
-and unrolls. The loop over vertices is kept scalar (:func:`~anatomesh.core.geometry.kernels.
-scalar_loop`): LLVM would vectorize it with three gathers per neighbour, which run slower here
-than scalar loads (a pass along one axis gathers one coordinate and stays vectorized). It runs
-in float32 (live sliders) or float64 alike.
+and unrolls. It runs in float32 (live sliders) or float64 alike.
 """
 from __future__ import annotations
 
@@ -16,7 +13,6 @@ import math
 from numba import njit, prange
 
 from ._filter_kernels import FAST, project_l1
-from ..geometry.kernels import scalar_loop
 
 #: width of the padded neighbour rows (``MeshStructure.padded``): a compile-time constant, so
 #: the neighbour loop unrolls; 97 % of marching-cubes vertices have at most 8 neighbours, the
@@ -134,7 +130,6 @@ def padded_pass(P, Q, cols, inv_count, factor, gain, axis, C, S, r2, metric):
     n = cols.shape[1]
     zero = P[0, n]
     for i in prange(n):
-        scalar_loop()  # faster than the vectorized loop's gathers (see scalar_loop)
         sx = zero
         sy = zero
         sz = zero

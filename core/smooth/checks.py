@@ -30,7 +30,6 @@ def out_dtype(vertices) -> np.dtype:
     return dt if np.issubdtype(dt, np.floating) else np.dtype(np.float64)
 
 
-
 def check_iterations(iterations) -> None:
     if int(iterations) != iterations or iterations < 0:
         raise AnatomeshError(f"iterations must be a whole number >= 0, got {iterations}")
@@ -71,4 +70,11 @@ def precision_dtype(precision: str) -> np.dtype:
 def check_factor(name, value, lo, hi):
     if not (lo < value <= hi):
         raise AnatomeshError(f"{name} must be in ({lo}, {hi}], got {value}")
+
+
+def check_taubin(lam, mu) -> None:
+    """λ in (0, 1] and −1 <= μ < −λ (Taubin 1995: the inflating step outweighs the shrinking one)."""
+    check_factor("lam", lam, 0.0, 1.0)
+    if not (mu < -lam) or mu < -1.0:
+        raise AnatomeshError(f"mu must satisfy -1 <= mu < -lam (Taubin 1995), got lam={lam}, mu={mu}")
 

@@ -12,7 +12,11 @@ default :data:`DEFAULT` = ``"organ"`` (:mod:`~anatomesh.core.smooth.presets`) ru
    "Staircase-aware smoothing of medical surface meshes");
 2. the fold guard (:func:`~anatomesh.core.smooth.guards.unfold`);
 3. the volume step (:func:`~anatomesh.core.smooth.guards.restore_volumes`): every label gets its
-   volume back, inside the same cells;
+   volume back, inside the same cells; then the component guard
+   (:mod:`~anatomesh.core.smooth.components`): every connected component of every label's shell
+   (cavities included) ends within ``component_bound_pct`` (10 %) of its unsmoothed volume —
+   the failing ones get their own volume regions, any still outside is blended back toward its
+   unsmoothed positions — so single-voxel specks and small cavities are not flattened;
 4. untangling (:func:`~anatomesh.core.smooth.untangle.untangle`): faces that now cross are
    pulled back toward their unsmoothed positions.
 
@@ -36,6 +40,7 @@ from typing import Optional, Tuple
 
 import numpy as np
 
+from .components import DEFAULT_BOUND_PCT
 from .constraints import (Constraint, distance_gain, lattice_constraint, staircase_params,
                           voxel_constraint)
 from .filters import FILTERS, hc_laplacian, laplacian, mean_curvature_flow, normal_filter, taubin
@@ -61,7 +66,8 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
                     max_deviation: Optional[float] = None, junctions: bool = True,
                     staircase="auto", damping_distance: Optional[float] = None,
                     preserve_volume: Optional[bool] = None, fold_guard: bool = True,
-                    untangle: bool = True, measure: bool = True, distances: bool = True,
+                    untangle: bool = True, component_bound_pct: Optional[float] = DEFAULT_BOUND_PCT,
+                    measure: bool = True, distances: bool = True,
                     topology: bool = True, volume_warning_pct: float = 5.0,
                     structure: Optional[MeshStructure] = None, precision: str = "float64",
                     progress: Optional[Progress] = None, **params) -> Tuple[SurfaceSet, SmoothingReport]:
@@ -94,6 +100,13 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
         After the filter, give every label (every closed connected component of independent
         surfaces) its volume back (:func:`restore_volumes`), inside the same constraint. None:
         the preset's choice (``"organ"``: yes), else no.
+    component_bound_pct : float, percent, optional
+        With the volume step: the component guard's bound (:mod:`.components`): every connected
+        component of every shell (``surfaces.shell(value)``'s components, cavities included;
+        closed components of independent surfaces) keeps ``|V − V_raw| <= bound · |V_raw|``.
+        ``report.params`` then holds ``component_bound_pct``, ``restored_components`` (outside
+        the bound, restored by their own volume regions) and ``blended_components`` (blended
+        back toward their unsmoothed positions). None: off.
     fold_guard : bool
         Undo folds the filter made (:func:`unfold`), after the filter and after restoring
         volumes; ``report.params["unfolded_vertices"]`` counts the vertices moved back.
@@ -120,7 +133,8 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
     return session.smooth(method, constraint=constraint, max_deviation=max_deviation,
                           junctions=junctions, staircase=staircase,
                           damping_distance=damping_distance, preserve_volume=preserve_volume,
-                          fold_guard=fold_guard, untangle=untangle, measure=measure,
+                          fold_guard=fold_guard, untangle=untangle,
+                          component_bound_pct=component_bound_pct, measure=measure,
                           distances=distances, topology=topology,
                           volume_warning_pct=volume_warning_pct,
                           precision=precision, progress=progress, keep=False, **params)

@@ -39,7 +39,7 @@ from typing import Optional
 import numpy as np
 
 from . import _filter_kernels as _k
-from .checks import check_factor, check_iterations, check_rings, precision_dtype
+from .checks import check_factor, check_iterations, check_rings, check_taubin, precision_dtype
 from .constraints import EYE, Constraint
 from .passes import uniform_passes
 from .prepare import Setup, constrain, finish, merge_rows, prepare, umbrella, weight_mode
@@ -108,10 +108,8 @@ def taubin(vertices, faces, *, iterations: int = 20, lam: float = 0.5, mu: float
 
     Other parameters as :func:`laplacian`. Returns (N, 3) positions, the dtype of ``vertices``.
     """
-    check_factor("lam", lam, 0.0, 1.0)
+    check_taubin(lam, mu)
     precision_dtype(precision)
-    if not (mu < -lam) or mu < -1.0:
-        raise AnatomeshError(f"mu must satisfy -1 <= mu < -lam (Taubin 1995), got lam={lam}, mu={mu}")
     mode = weight_mode(weights)
     check_iterations(iterations)
     axis = None

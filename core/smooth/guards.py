@@ -57,10 +57,14 @@ def unfold(vertices, start, faces, *, rounds: int = 10, eps: float = 1e-3,
 
 
 def folded_faces(pos: np.ndarray, start: np.ndarray, s: MeshStructure,
-                 eps: float = 1e-3) -> np.ndarray:
+                 eps: float = 1e-3, among: Optional[np.ndarray] = None) -> np.ndarray:
     """The faces :func:`unfold` finds folded, (K,) int64: ``pos`` (N, 3) float64, or float32
-    read as float64 (the same faces as on its float64 copy, without making it)."""
-    return np.flatnonzero(_gk.folded(pos, start, s.faces, float(eps)))
+    read as float64 (the same faces as on its float64 copy, without making it). ``among``
+    (L,) int: check only these faces."""
+    if among is None:
+        return np.flatnonzero(_gk.folded(pos, start, s.faces, float(eps)))
+    among = np.asarray(among, np.int64)
+    return among[_gk.folded(pos, start, np.ascontiguousarray(s.faces[among]), float(eps))]
 
 
 def unfold_in_place(pos: np.ndarray, start: np.ndarray, s: MeshStructure,
@@ -118,6 +122,7 @@ class VolumeRegions:
         self.areas: Optional[np.ndarray] = None  # per-face working buffers, made on use
         self.tet: Optional[np.ndarray] = None
         self.between = np.zeros((self.r, self.r) if self.touching else (1, 1))
+        self.missing = np.zeros(self.r)  # target − volume at the last offsets (0: free)
 
     def volumes(self, pos: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """``(volume (R,) mm³, shell area (R,) mm²)`` of every region at float64 ``pos``; fills
@@ -140,6 +145,7 @@ class VolumeRegions:
         target volumes to first order; see :func:`restore_volumes`."""
         volume, diag = self.volumes(pos)
         dv = np.where(self.free, 0.0, self.targets - volume)
+        self.missing = dv
         active = diag > 0  # M λ = dv: M_rr = area of r's shell, M_rs = −(area between r and s)
         lam = np.zeros(self.r + 1)
         if not self.touching:
@@ -150,13 +156,16 @@ class VolumeRegions:
         return lam
 
     def restore(self, pos: np.ndarray, s: MeshStructure, cons: tuple, gain: np.ndarray,
-                iterations: int = 3) -> np.ndarray:
+                iterations: int = 3, tol: Optional[float] = None) -> np.ndarray:
         """:func:`restore_volumes` on float64 ``pos``; ``cons``: the constraint's kernel
-        arrays (:meth:`Constraint.arrays`), ``gain`` (N,) or empty. Returns the new positions
+        arrays (:meth:`Constraint.arrays`), ``gain`` (N,) or empty; ``tol``: stop early once
+        every region is within this fraction of its target. Returns the new positions
         (``pos`` or a buffer)."""
         buf = np.empty_like(pos)
         for _ in range(int(iterations)):
             lam = self.offsets(pos)  # also the face areas at pos
+            if tol is not None and np.all(np.abs(self.missing) <= tol * np.abs(self.targets)):
+                break
             _gk.vertex_moves(pos, buf, self.faces, s.vf_offsets, s.vf, self.areas, lam,
                              self.inside, self.outside, gain)
             if cons[0] != 0 or cons[4] < np.inf:

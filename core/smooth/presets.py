@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Dict, Tuple
 
+from .checks import check_factor, check_iterations, check_taubin
 from ..model.errors import AnatomeshError
 
 #: The named default for label maps and organ isosurfaces.
@@ -53,6 +54,20 @@ def resolve(method: str = DEFAULT, **params) -> Tuple[str, dict]:
         return method, dict(params)
     raise AnatomeshError(f"unknown smoothing method {method!r}; choose one of "
                          f"{sorted(set(PRESETS) | set(METHODS))}")
+
+
+def check_settings(method: str = DEFAULT, **params) -> Tuple[str, dict]:
+    """:func:`resolve` and the checks the filters make of their settings, without a mesh (a run
+    refuses bad settings before it reads its input): the method, whole ``iterations`` >= 0, λ in
+    (0, 1] and, for Taubin, −1 <= μ < −λ. Returns what :func:`resolve` returns."""
+    name, p = resolve(method, **params)
+    if p.get("iterations") is not None:
+        check_iterations(p["iterations"])
+    if p.get("lam") is not None:
+        check_factor("lam", p["lam"], 0.0, 1.0)
+        if name == "taubin" and p.get("mu") is not None:
+            check_taubin(p["lam"], p["mu"])
+    return name, p
 
 
 def taubin_mu(lam: float, k_pb: float) -> float:

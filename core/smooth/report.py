@@ -19,7 +19,12 @@ class SmoothingReport:
     ----------
     method : str — the filter run ("none" when nothing moved)
     params : dict — its parameters (constraint described, not its arrays), plus
-        ``unfolded_vertices`` / ``untangled_vertices`` when those guards ran
+        ``unfolded_vertices`` / ``untangled_vertices`` when those guards ran and, when the
+        component guard ran (:mod:`~anatomesh.core.smooth.components`): ``component_bound_pct``
+        (its bound: every shell component within this percentage of its unsmoothed volume),
+        ``restored_components`` (components outside it after the volume step, brought back by
+        their own volume regions) and ``blended_components`` (components blended back toward
+        their unsmoothed positions to get within it)
     seconds : float — smoothing time (set-up + filter + guards), without measuring
     shells : dict — per label value the measures of
         :func:`anatomesh.core.geometry.measure.compare` (volume change, distances, ...)

@@ -7,11 +7,12 @@ vertex kept in its lattice cell, Gibson 1998, "Constrained elastic surface nets"
 independent surfaces (:meth:`SurfaceSet.from_meshes`: each vertex kept in a voxel-sized box of
 ``surfaces.affine`` around its start). Cached: the neighbourhoods (1-ring, junction rings,
 padded columns, vertex → faces), the cell boxes, the regions and target volumes of the volume
-step, the faces bucketed by their boxes (which pairs can cross,
-:class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`; the pairs are listed from the second run
-on) and the unsmoothed side of the report. :meth:`SmoothingSession.run` then runs the
-whole default driver — filter, fold guard, volume step, fold guard, untangling — for any
-settings; :meth:`SmoothingSession.smooth` adds the per-shell report.
+step, the shell components and their volumes (the component guard), the faces bucketed by
+their boxes (which pairs can cross, :class:`~anatomesh.core.geometry.face_pairs.FaceBoxes`;
+the pairs are listed from the second run on) and the unsmoothed side of the report.
+:meth:`SmoothingSession.run` then runs the whole default driver — filter, fold guard, volume
+step, fold guard, component guard (:mod:`~anatomesh.core.smooth.components`), untangling — for
+any settings; :meth:`SmoothingSession.smooth` adds the per-shell report.
 
 Usage (a slider)::
 
@@ -32,6 +33,7 @@ from typing import Dict, Optional, Tuple
 import numpy as np
 
 from .checks import mesh_structure, precision_dtype
+from .components import DEFAULT_BOUND_PCT, ComponentGuard, check_bound
 from .constraints import (Constraint, clamp, distance_gain, lattice_constraint, staircase_params,
                           voxel_constraint)
 from .filters import FILTERS
@@ -193,7 +195,8 @@ class SmoothingSession:
     def run(self, method: str = DEFAULT, *, constraint="auto", max_deviation: Optional[float] = None,
             junctions: bool = True, staircase="auto", damping_distance: Optional[float] = None,
             preserve_volume: Optional[bool] = None, fold_guard: bool = True, untangle: bool = True,
-            precision: str = "float64", progress: Optional[Progress] = None, keep: bool = True,
+            component_bound_pct: Optional[float] = DEFAULT_BOUND_PCT, precision: str = "float64",
+            progress: Optional[Progress] = None, keep: bool = True,
             **params) -> Tuple[np.ndarray, dict]:
         """Smooth the unsmoothed surfaces with these settings; see
         :func:`~anatomesh.core.smooth.driver.smooth_surfaces` for each setting. ``precision``:
@@ -207,6 +210,7 @@ class SmoothingSession:
         "seconds", "warnings"}``."""
         t0 = time.perf_counter()
         precision_dtype(precision)
+        bound = check_bound(component_bound_pct)
         self._runs += 1
         name, p = resolve(method, **params)
         preset_constraint = p.pop("constraint", "cell")
@@ -221,9 +225,10 @@ class SmoothingSession:
         kw["progress"] = sub(progress, 0.0, 0.9) if preserve else progress
         cons = (c.anchored(self.rest) if c is not None else Constraint()).arrays(self.rest)
         # the filtered positions go straight to the guards, which drop them when done (memory)
+        guards = dict(preserve=preserve, fold_guard=fold_guard, untangle=untangle,
+                      bound=bound if preserve else None)
         out, extra, warnings = self._guards(self._filtered(name, kw, cons, keep), c, cons,
-                                            kw.get("gain"), preserve, fold_guard, untangle,
-                                            progress, keep)
+                                            kw.get("gain"), guards, progress, keep)
         if not keep:
             self.release()
         report(progress, 1.0, "smoothed")
@@ -260,17 +265,24 @@ class SmoothingSession:
         clamp(pos, cons)
         return pos
 
-    def _guards(self, pos, c, cons, gain, preserve, fold_guard, untangle, progress, keep=True):
-        """Fold guard, volume step, fold guard (float64, in place), then untangling on the
-        float32 positions the set keeps (``keep=False``: the volume regions freed after their
-        step). Returns (float32 positions, params, warnings)."""
+    def components(self) -> ComponentGuard:
+        """The components of every shell with their unsmoothed volumes (the component guard,
+        :mod:`~anatomesh.core.smooth.components`); cached."""
+        return self._cached("components", lambda: ComponentGuard(self.surfaces, self.rest,
+                                                                 self.structure))
+
+    def _guards(self, pos, c, cons, gain, guards: dict, progress, keep=True):
+        """Fold guard, volume step, fold guard, component guard (float64, in place), then
+        untangling on the float32 positions the set keeps and the components checked again
+        (``keep=False``: the volume regions freed after their step). ``guards``: the switches
+        ``preserve``, ``fold_guard``, ``untangle`` and the component ``bound`` (fraction or
+        None). Returns (float32 positions, params, warnings)."""
         extra, warnings = {}, []
-        unfolded = 0
-        if fold_guard:
-            unfolded += unfold_in_place(pos, self.rest, self.structure)
-        if preserve:
-            pos = self.regions().restore(pos, self.structure, cons,
-                                         np.zeros(0) if gain is None else gain)
+        gain = np.zeros(0) if gain is None else gain
+        fold_guard, bound = guards["fold_guard"], guards["bound"]
+        unfolded = unfold_in_place(pos, self.rest, self.structure) if fold_guard else 0
+        if guards["preserve"]:
+            pos = self.regions().restore(pos, self.structure, cons, gain)
             if not keep:  # and the feature rings the regions of independent surfaces need
                 self._cache.pop("regions", None)
                 self.structure.release_buffers()
@@ -279,22 +291,64 @@ class SmoothingSession:
             extra["preserve_volume"] = True
         if fold_guard:
             extra["unfolded_vertices"] = unfolded
+        restored, blended = set(), set()
+        if bound is not None:
+            restored, blended = self.components().guard(pos, cons, gain, bound, fold_guard)
         out = pos.astype(np.float32)
         del pos  # memory: untangling works on the float32 positions
-        if untangle:
+        if guards["untangle"]:
             report(progress, 0.97, "checking for crossing faces")
-            pairs = self.boxes(listing=keep) if id(c) in self._cells else None
-            out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
-                                           structure=self.structure, in_place=True)
-            extra["untangled_vertices"] = info["moved_vertices"]
-            if fold_guard and info["moved_vertices"]:
-                out, more, left = self._unfold_untangled(out, pairs)
-                extra["unfolded_vertices"] += more
-                info["crossings_left"] = left if left is not None else info["crossings_left"]
-            if info["crossings_left"]:
-                warnings.append(f"{info['crossings_left']} pairs of faces still cross after "
-                                "smoothing (the unsmoothed surface crosses itself there)")
+            out = self._untangle(out, c, fold_guard, bound, blended, keep, extra, warnings)
+        if bound is not None:
+            extra.update(component_bound_pct=100.0 * bound,
+                         restored_components=len(restored - blended),
+                         blended_components=len(blended))
         return out, extra, warnings
+
+    def _untangle(self, out, c, fold_guard, bound, blended: set, keep, extra, warnings):
+        """Untangling (and the fold guard after it), then the components it pushed outside the
+        bound blended back (:meth:`_components_after_untangling`, adding to ``blended``)."""
+        pairs = self.boxes(listing=keep) if id(c) in self._cells else None
+        out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
+                                       structure=self.structure, in_place=True)
+        extra["untangled_vertices"] = info["moved_vertices"]
+        if fold_guard and info["moved_vertices"]:
+            out, more, left = self._unfold_untangled(out, pairs)
+            extra["unfolded_vertices"] += more
+            info["crossings_left"] = left if left is not None else info["crossings_left"]
+        if bound is not None and info["moved_vertices"]:
+            out, more = self._components_after_untangling(out, pairs, bound, blended)
+            extra["untangled_vertices"] += more
+        if info["crossings_left"]:
+            warnings.append(f"{info['crossings_left']} pairs of faces still cross after "
+                            "smoothing (the unsmoothed surface crosses itself there)")
+        return out
+
+    def _components_after_untangling(self, out, pairs, bound: float, blended: set,
+                                     rounds: int = 3):
+        """Untangling pulls vertices toward their unsmoothed positions, which can move a small
+        component's volume: blend those outside ``bound`` back, untangle around them, and so on
+        for ``rounds`` rounds; any still outside goes back to its unsmoothed positions. Returns
+        (float32 positions, vertices untangled)."""
+        comps, s, moved = self.components(), self.structure, 0
+        fail = comps.failing(out, bound)
+        for _ in range(rounds):
+            if fail.size == 0:
+                return out, moved
+            blended.update(fail.tolist())
+            verts = comps.blend(out, fail, bound)
+            out, info = untangle_crossings(out, self.surfaces.vertices, self.faces, pairs=pairs,
+                                           structure=s, in_place=True,
+                                           active=faces_around(s, verts))
+            moved += info["moved_vertices"]
+            fail = comps.failing(out, bound)
+        for _ in range(comps.n if fail.size else 0):  # straight back: ends when all are raw
+            blended.update(fail.tolist())
+            comps.blend(out, fail, bound, exact=True)
+            fail = comps.failing(out, bound)
+            if fail.size == 0:
+                break
+        return out, moved
 
     def _unfold_untangled(self, out: np.ndarray, pairs, rounds: int = 3):
         """Untangling pulls vertices part of the way back and can fold a few faces: unfold
@@ -335,7 +389,7 @@ class SmoothingSession:
         run measures without them, so its peak memory is the larger of the two steps, not
         their sum."""
         for key in [k for k, v in self._cache.items()
-                    if k in ("boxes", "regions") or id(v) in self._cells]:
+                    if k in ("boxes", "regions", "components") or id(v) in self._cells]:
             del self._cache[key]
         self._cells.clear()
         self.structure.release_buffers()

@@ -55,7 +55,7 @@ def test_a_one_shot_run_frees_each_steps_caches_and_gives_the_same_surfaces(map4
     once, rep = session.smooth("organ", keep=False)
     np.testing.assert_array_equal(once.vertices, kept.vertices)
     assert rep.shells == kept_rep.shells and rep.params == kept_rep.params
-    assert not {"boxes", "regions", "groups"} & set(session._cache)
+    assert not {"boxes", "regions", "groups", "components"} & set(session._cache)
     assert not [k for k in session._cache if isinstance(k, tuple) and k[0] == "cell"]
     s = session.structure
     assert not s._padded and not s._buffers and not s._feature
