@@ -31,10 +31,12 @@ from ..model.errors import AnatomeshError
 from ..model.mesh import Mesh, check_arrays, degenerate_faces
 from ..model.progress import Progress, report, sub
 from .gaps import part_gaps
+from .locate import location_text
 from .profiles import DEGENERATE_AREA_MM2, GAP_REPORT_MM, resolve_profile
 from .seams import seam_neighbourhoods
 from .solid import sliver_faces, split_crossings, tiny_shells
 from .features import thin_features
+from .pinch import pinches
 from .thickness import wall_thickness
 
 #: at most this many thin regions are listed per part
@@ -74,16 +76,15 @@ def check_parts(meshes: Sequence[Mesh], profile="fdm", min_wall: Optional[float]
     parts = [check_arrays(m.vertices, m.faces) for m in meshes]
     names = [m.name or str(i) for i, m in enumerate(meshes)]
     report(progress, 0.0, "intersections")
-    self_pairs, cross = split_crossings(meshes, crossing_pairs(parts))
+    grids = [TriangleGrid(v, f) if len(f) else None for v, f in parts]
+    self_pairs, cross = split_crossings(meshes, crossing_pairs(parts), grids)
     report(progress, 0.15, "parts")
-    grids = []
     out_parts = []
     sp = sub(progress, 0.15, 0.8)
     near_seam = seam_neighbourhoods(parts)
     for i, ((v, f), name) in enumerate(zip(parts, names)):
         report(sp, i / max(len(parts), 1), f"wall thickness {name}")
-        grids.append(TriangleGrid(v, f) if len(f) else None)
-        out_parts.append(_check_part(v, f, name, grids[-1], prof, self_pairs[i], near_seam[i]))
+        out_parts.append(_check_part(v, f, name, grids[i], prof, self_pairs[i], near_seam[i]))
     gaps = part_gaps(meshes, GAP_REPORT_MM, prof["min_gap"], grids=grids,
                      progress=sub(progress, 0.8, 1.0))
     inter = _add_crossings(cross, out_parts, gaps)
@@ -121,6 +122,10 @@ def _check_part(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
                                 oriented=bool(topo.closed and topo.manifold and topo.oriented),
                                 return_details=True)
     regions = thin_features(v, f, thick, det, prof["min_wall"], prof["min_feature"], grid=grid)
+    failing = np.zeros(len(v), bool)
+    for r in regions:
+        failing[r["vertices"]] |= r["fails"]
+    regions += pinches(v, f, det, prof["min_wall"], prof["min_gap"], grid=grid, exclude=failing)
     for r in regions:
         r["seam_backed"] = bool(r["fails"] and near_seam is not None and near_seam[r["vertices"]].all())
     free = [r for r in regions if r["fails"] and not r["seam_backed"]]
@@ -140,13 +145,22 @@ def _check_part(v, f, name, grid, prof, self_pairs, near_seam=None) -> Dict:
         "seam_backed_thin_area_mm2": round(float(sum(r["area_mm2"] for r in backed)), 3),
         "thin_regions": [_region_entry(r) for r in (free + backed)[:_MAX_REGIONS]],
         "thin_region_count": len(free),
-        "rims": {"count": len(rims), "area_mm2": round(float(sum(r["area_mm2"] for r in rims)), 3),
-                 "min_mm": _round(min((r["min_mm"] for r in rims), default=None))},
+        "rims": _rims_entry(rims),
+        "warnings": [r["warning"] for r in rims if "warning" in r],
         "part_intersections": 0,
     }
     entry["reasons"] = _reasons(entry, topo, free, prof)
     entry["passed"] = not entry["reasons"]
     return entry
+
+
+def _rims_entry(rims: List[Dict]) -> Dict:
+    """The report's ``rims`` of a part: how many pass, their area and thinnest point, how many a
+    printer blunts noticeably (``blunted``, each with a warning) and by how much at most."""
+    warned = [r for r in rims if "warning" in r]
+    return {"count": len(rims), "area_mm2": round(float(sum(r["area_mm2"] for r in rims)), 3),
+            "min_mm": _round(min((r["min_mm"] for r in rims), default=None)),
+            "blunted": len(warned), "max_cut_back_mm": _round(max((r["cut_back_mm"] for r in warned), default=None))}
 
 
 def _min_wall(thick: np.ndarray, passing: List[Dict]) -> Optional[float]:
@@ -165,6 +179,11 @@ def _region_entry(r: Dict) -> Dict:
            "reach_area_mm2": round(r["reach_area_mm2"], 3), "min_mm": round(r["min_mm"], 3),
            "median_mm": round(r["median_mm"], 3), "min_location": r["min_location"],
            "vertices": int(r["vertices"].size), "seam_backed": r["seam_backed"]}
+    if r["kind"] == "pinch":
+        out["gap_mm"] = _round(r["gap_mm"])
+    if "angle_deg" in r:
+        out.update(angle_deg=r["angle_deg"], cut_back_mm=_round(r["cut_back_mm"]),
+                   cut_back_location=r["cut_back_location"])
     return out
 
 
@@ -181,7 +200,7 @@ def _reasons(entry: Dict, topo, free: List[Dict], prof: Dict) -> List[str]:
         out.append(f"{entry['degenerate_faces']} degenerate (zero-area) faces")
     for s in entry["tiny_shells"]:
         out.append(f"loose shell of {s['volume_mm3']:.2f} mm³ (< {prof['min_shell_mm3']:g} mm³) at "
-                   f"({', '.join(f'{x:.0f}' for x in s['location'])})")
+                   + location_text(s['location']))
     out += [r["reason"] for r in free]
     return out
 

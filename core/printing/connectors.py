@@ -5,7 +5,9 @@ assembled (liver segments, a heart opened in halves).
 The pins stand where the interface has most room (farthest from its rim), at most two, at least
 four pin radii apart; each is a cylinder along the interface's normal (from part A into part B),
 its diameter the profile's (smaller where the interface is small), its length up to 1.5 diameters
-or what B's depth allows. B gets a pocket wider by the clearance on every side and deeper by the
+or what B's depth allows under the whole pocket with a wall around it (rays along the axis from
+the pocket's centre and around its circle widened by the wall, so a pocket breaks out of B
+neither through its bottom nor through its side). B gets a pocket wider by the clearance on every side and deeper by the
 clearance. Both parts stay closed and consistently oriented (:mod:`.drill`).
 """
 from __future__ import annotations
@@ -24,6 +26,8 @@ from .locate import location
 _MIN_RADIUS = 0.75
 #: a pocket keeps at least this far from the interface's rim, mm
 _RIM_MARGIN = 1.0
+#: rays around a pocket's circle that measure how deep the part goes under it
+_DEPTH_RAYS = 12
 
 
 def interface_faces(a: Mesh, b: Mesh) -> np.ndarray:
@@ -58,8 +62,8 @@ def add_connectors(a: Mesh, b: Mesh, clearance: float, diameter: float = 5.0, co
         r = min(0.5 * diameter, room - clearance - _RIM_MARGIN)
         if r < _MIN_RADIUS:
             continue
-        depth, _, _, _ = grid_b.cast(p[None] + 1e-3 * axis, axis[None], t_min=1e-6)
-        length = float(min(3 * r, depth[0] - clearance - min_wall))
+        depth = _solid_depth(grid_b, p, axis, r + clearance + min_wall)
+        length = float(min(3 * r, depth - clearance - min_wall))
         if not length >= r:
             continue
         try:
@@ -91,6 +95,31 @@ def _pin(va, fa, vb, fb, p, axis, r, length, clearance):
     return va, fa, vb, fb, {"location": location(p), "diameter_mm": round(2 * r, 3),
                             "length_mm": round(length, 3), "pocket_diameter_mm": round(2 * (r + clearance), 3),
                             "pocket_depth_mm": round(deep, 3)}
+
+
+def _solid_depth(grid: TriangleGrid, p: np.ndarray, axis: np.ndarray, radius: float) -> float:
+    """How deep, mm, the solid of ``grid`` goes along ``axis`` from the plane through ``p``
+    across it, under the whole disc of ``radius`` around ``p``: the nearest exit of rays along
+    the axis from the centre and :data:`_DEPTH_RAYS` points on the circle (each started a
+    radius behind the plane, so a curved interface is entered first). A pocket shallower than
+    this less the wall breaks out neither through the bottom nor through the side."""
+    helper = [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0]
+    e1 = np.cross(axis, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    ang = 2 * np.pi * np.arange(_DEPTH_RAYS) / _DEPTH_RAYS
+    ring = radius * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
+    q0 = p + np.vstack([np.zeros(3), ring]) - radius * axis
+    d = np.broadcast_to(axis, q0.shape)
+    inside = grid.contains(q0)
+    t1, _, _, _ = grid.cast(q0, d, t_min=1e-6)
+    exit_t = t1.copy()
+    enter = np.flatnonzero(~inside & np.isfinite(t1))
+    if enter.size:
+        t2, _, _, _ = grid.cast(q0[enter] + (t1[enter, None] + 1e-6) * axis, d[enter], t_min=1e-6)
+        exit_t[enter] = t1[enter] + t2
+    exit_t[~inside & ~np.isfinite(t1)] = 0.0  # a ray that never enters: no room there
+    return float(np.min(exit_t)) - radius
 
 
 def _spots(v, f, seam: np.ndarray, count: int, min_apart_radius: float):

@@ -13,3 +13,8 @@ def location(points: np.ndarray, weights: Optional[np.ndarray] = None) -> List[f
     if weights is None or not np.sum(weights) > 0:
         return [round(float(x), 3) for x in p.mean(0)]
     return [round(float(x), 3) for x in np.average(p, axis=0, weights=weights)]
+
+
+def location_text(point) -> str:
+    """A location as a reason shows it: "(x, y, z)" in whole mm (never "-0")."""
+    return "(" + ", ".join(str(round(float(x))) for x in point) + ")"

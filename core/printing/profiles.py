@@ -31,6 +31,10 @@ GAP_REPORT_MM = 5.0
 SLIVER_ANGLE_DEG = 1.0
 #: faces at most this large are degenerate, mm²
 DEGENERATE_AREA_MM2 = 1e-10
+#: a face of one part reaching no farther than this into another part touches it, mm (a
+#: micrometre: far below any printer's resolution, far above the float32 rounding of positions
+#: within a body, ~3e-5 mm)
+CONTACT_MM = 1e-3
 
 
 def resolve_profile(profile="fdm", min_wall: Optional[float] = None, min_gap: Optional[float] = None,

@@ -18,6 +18,7 @@ first point far enough from the surface is never stepped over.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..geometry.spatial import TriangleGrid
 from ..model.errors import AnatomeshError
@@ -30,6 +31,7 @@ _HALF_ANGLE_DEG = 70.0
 _MAX_STEPS = 60
 #: a point this fraction of the radius along its inward direction must be inside (else: a fold)
 _FOLD_STEP = 0.1
+
 
 
 def cone_directions(axis: np.ndarray, half_angle_deg: float = _HALF_ANGLE_DEG, rings: int = _RINGS,
@@ -86,6 +88,34 @@ def reach_beyond_body(grid: TriangleGrid, points: np.ndarray, inward: np.ndarray
         best[todo[found]] = dist[found]
         todo = todo[~found]
     return best
+
+
+def reach_by_balls(points: np.ndarray, centres: np.ndarray, radii: np.ndarray, wall: float,
+                   limit: float) -> np.ndarray:
+    """Distance (P,) mm from each point to the union of the inscribed balls (centres (B, 3) mm,
+    radii (B,) mm, e.g. the shrinking balls of :func:`.thickness.face_thickness`) at least
+    ``wall / 2`` in radius: ``min(|p − c| − r)``, 0 inside one, ``inf`` beyond ``limit`` mm.
+
+    Every such ball lies in the part's body at wall ``wall`` (it is a union of balls of
+    diameter ``wall``), so this is an upper bound of the distance to the body, as close as the
+    balls sample the medial axis (one per face): on a wedge of full angle θ the nearest ball
+    from the tip is the one of radius ``wall / 2``, ``(wall/2)·(1/sin(θ/2) − 1)`` away, found to
+    within the spacing of the faces' balls."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    c = np.asarray(centres, np.float64).reshape(-1, 3)
+    r = np.asarray(radii, np.float64).reshape(-1)
+    keep = np.isfinite(r) & (r >= 0.5 * float(wall)) & np.all(np.isfinite(c), axis=1)
+    c, r = c[keep], r[keep]
+    out = np.full(len(p), np.inf)
+    if len(p) == 0 or len(c) == 0:
+        return out
+    tree = cKDTree(c)
+    for i, near in enumerate(tree.query_ball_point(p, float(limit) + float(r.max()))):
+        if near:
+            gap = np.linalg.norm(c[near] - p[i], axis=1) - r[near]
+            out[i] = max(float(gap.min()), 0.0)
+    out[out > limit] = np.inf
+    return out
 
 
 def _trace(grid: TriangleGrid, p: np.ndarray, w: np.ndarray, rho: float, s_max: float, t_min: float):

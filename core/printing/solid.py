@@ -9,15 +9,21 @@ from :func:`anatomesh.core.model.mesh.degenerate_faces`. Units are mm, mmÂ², mmÂ
 """
 from __future__ import annotations
 
-from typing import Dict, List, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from ..geometry.intersections import Crossings, crossing_pairs
+from ..geometry.spatial import TriangleGrid
 from ..geometry.topology import component_measures
 from ..model.mesh import Mesh, check_arrays
 from .locate import location
-from .profiles import SLIVER_ANGLE_DEG
+from .profiles import CONTACT_MM, SLIVER_ANGLE_DEG
+
+#: where a face is probed for reaching into another part: its corners, edge midpoints, centroid
+#: (barycentric weights)
+_PROBES = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5],
+                    [1 / 3, 1 / 3, 1 / 3]])
 
 
 def sliver_faces(vertices: np.ndarray, faces: np.ndarray, min_angle_deg: float = SLIVER_ANGLE_DEG):
@@ -59,16 +65,21 @@ def tiny_shells(vertices: np.ndarray, faces: np.ndarray, min_volume_mm3: float) 
 
 
 def part_intersections(meshes: Sequence[Mesh]) -> List[Dict]:
-    """Pairs of parts whose faces cross (shared seams excepted).
+    """Pairs of parts whose faces cross (shared seams and faces that only touch excepted, see
+    :func:`touching_pairs`).
 
     Returns ``[{"a", "b" (names), "faces_a", "faces_b" (index arrays), "location"}]``."""
     parts = [check_arrays(m.vertices, m.faces) for m in meshes]
-    return split_crossings(meshes, crossing_pairs(parts))[1]
+    grids = [TriangleGrid(v, f) if len(f) else None for v, f in parts]
+    return split_crossings(meshes, crossing_pairs(parts), grids)[1]
 
 
-def split_crossings(meshes: Sequence[Mesh], crossings: Crossings) -> Tuple[List[np.ndarray], List[Dict]]:
+def split_crossings(meshes: Sequence[Mesh], crossings: Crossings,
+                    grids: Optional[Sequence[Optional[TriangleGrid]]] = None
+                    ) -> Tuple[List[np.ndarray], List[Dict]]:
     """Sort the crossing face pairs of all parts together (:func:`crossing_pairs` of the parts in
-    the order of ``meshes``) per part.
+    the order of ``meshes``) per part. With ``grids`` (one per part, of its own vertices and
+    faces), pairs of faces of two parts that only touch (:func:`touching_pairs`) are left out.
 
     Returns (per part its self-intersecting face pairs (K, 2) int64, local face indices;
     per crossing pair of parts ``{"a", "b" (names), "ia", "ib" (indices, ia < ib), "faces_a",
@@ -78,6 +89,8 @@ def split_crossings(meshes: Sequence[Mesh], crossings: Crossings) -> Tuple[List[
     cross = []
     if pairs.shape[0] == 0:
         return self_pairs, cross
+    if grids is not None:
+        pairs = pairs[~touching_pairs(crossings, grids)]
     pa, pb = part[pairs[:, 0]], part[pairs[:, 1]]
     same = pa == pb
     for i in np.unique(pa[same]):
@@ -100,3 +113,55 @@ def split_crossings(meshes: Sequence[Mesh], crossings: Crossings) -> Tuple[List[
                           "faces_b": np.unique(fb[sel]) - offs_f[j],
                           "location": location(v[f[faces_all].ravel()])})
     return self_pairs, cross
+
+
+def touching_pairs(crossings: Crossings, grids: Sequence[Optional[TriangleGrid]]) -> np.ndarray:
+    """(K,) bool over ``crossings.pairs``: pairs of faces of two different parts that touch
+    without crossing: two parts whose shared interface is triangulated differently on each side
+    (around the pins and pockets of :mod:`.connectors`, whose drilling refines each side on its
+    own), the mouth of a pocket's wall meeting the pin part's interface face.
+
+    Two faces touch when neither reaches more than :data:`.profiles.CONTACT_MM` into the other
+    part (probed at its corners, edge midpoints and centroid: distance to the other part's
+    surface, inside it by ray parity) and, where they lie in one plane, their outward normals
+    are opposite (the parts on either side of it; with the same normal one part lies inside the
+    other). ``grids`` has one :class:`~anatomesh.core.geometry.spatial.TriangleGrid` per part, of
+    that part's own vertices and faces; pairs within one part are never touching here."""
+    v, f, part, offs_f, pairs = crossings
+    out = np.zeros(len(pairs), bool)
+    if pairs.shape[0] == 0:
+        return out
+    pa, pb = part[pairs[:, 0]], part[pairs[:, 1]]
+    cand = np.flatnonzero(pa != pb)
+    deep = np.zeros(len(pairs), bool)
+    for mine, other in ((0, 1), (1, 0)):  # the faces of one side probed into the other's part
+        target = part[pairs[cand, other]]
+        for j in np.unique(target):
+            sel = cand[target == j]
+            deep[sel] |= _reaches_into(v[f[pairs[sel, mine]]], grids[j])
+    tri_a, tri_b = v[f[pairs[cand, 0]]], v[f[pairs[cand, 1]]]
+    na, nb = _unit_normals(tri_a), _unit_normals(tri_b)
+    flat = (np.abs(np.einsum("kij,kj->ki", tri_b - tri_a[:, :1], na)).max(1) <= CONTACT_MM) & \
+           (np.abs(np.einsum("kij,kj->ki", tri_a - tri_b[:, :1], nb)).max(1) <= CONTACT_MM)
+    same_side = flat & (np.einsum("kj,kj->k", na, nb) > 0)
+    out[cand] = ~deep[cand] & ~same_side
+    return out
+
+
+def _reaches_into(tri: np.ndarray, grid: Optional[TriangleGrid]) -> np.ndarray:
+    """(K,) bool: triangles ``tri`` (K, 3, 3) mm with a probe point (:data:`_PROBES`) inside the
+    part of ``grid`` farther than :data:`.profiles.CONTACT_MM` from its surface."""
+    if grid is None or len(tri) == 0:
+        return np.zeros(len(tri), bool)
+    pts = np.einsum("pc,kcj->kpj", _PROBES, tri).reshape(-1, 3)
+    d, _, _ = grid.closest(pts, max_distance=2 * CONTACT_MM)
+    off = np.flatnonzero(~(d <= CONTACT_MM))
+    inside = np.zeros(len(pts), bool)
+    if off.size:
+        inside[off] = grid.contains(pts[off])
+    return inside.reshape(len(tri), len(_PROBES)).any(axis=1)
+
+
+def _unit_normals(tri: np.ndarray) -> np.ndarray:
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)

@@ -347,18 +347,25 @@ def test_creases_at_seams_do_not_fail_parts_printed_together():
     seam-backed and do not fail the part; free thin features (cartilage) still do; once parts no
     longer share seams every thin feature counts."""
     from anatomesh.core import label_surfaces, load
+    from anatomesh.core.geometry.pinches import pinch_gap_mm, separate_shells
     from anatomesh.core.smooth.driver import smooth_surfaces
 
     vol = load(shared("totalsegmentator", "example_seg_fast_force_split.nii.gz"))
     sm, _ = smooth_surfaces(label_surfaces(vol), "organ", distances=False)
     shells = sm.shells()
+    separate_shells(sm, shells, pinch_gap_mm(sm.affine))  # as written: pinch points parted
     rep = pc.check_parts(shells, "fdm")
     parts = {p["name"]: p for p in rep["parts"]}
     backed = [p for p in rep["parts"] if p["passed"] and p["seam_backed_thin_area_mm2"] > 0]
-    assert len(backed) >= 3  # organs with creases only: pass
-    # 23 of 61 parts failed before rims were told apart; the rest fail for loose shells, thin
-    # cartilage, the lungs' sharp edges, a pinch in the sacrum
-    assert sum(p["passed"] for p in rep["parts"]) >= 50
+    assert len(backed) >= 1  # organs with creases only: pass
+    # the others fail for loose shells, thin cartilage, the lungs' sharp edges, and pinches: two
+    # parts of a structure touching along a voxel edge or at a corner of the map, parted by the
+    # pinch gap in the written surface (a print holds them by less than the wall)
+    assert sum(p["passed"] for p in rep["parts"]) >= 40
+    pinched = [p for p in rep["parts"]
+               if any(r["kind"] == "pinch" and not r["seam_backed"] for r in p["thin_regions"])]
+    assert {"sacrum", "costal_cartilages"} <= {p["name"] for p in pinched}
+    assert all(not p["passed"] for p in pinched)
     assert sum(p["rims"]["count"] for p in rep["parts"]) > 200
     assert all(p["reasons"] for p in rep["parts"] if not p["passed"])
     assert all(r["seam_backed"] for p in backed for r in p["thin_regions"])

@@ -1,6 +1,8 @@
 """Connectors across the interface of two touching parts: pins on A, pockets wider and deeper by
 the clearance in B; both stay closed solids; the pins' volume is added to A and the pockets'
 taken from B; pin and pocket walls are the clearance apart."""
+import json
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,100 @@ def test_prusaslicer_reads_both_connected_parts_as_manifold(blocks, tmp_path):
         write_stl(m, stl)
         res = subprocess.run([prusa, "--info", str(stl)], capture_output=True, text=True, timeout=300)
         assert "manifold = yes" in res.stdout, res.stdout
+
+
+# ---------------------------------------------------------------------------------------------
+# the print check on connected parts: a pin in its pocket is contact, not a crossing
+# ---------------------------------------------------------------------------------------------
+def test_pins_in_their_pockets_are_not_crossings_but_overlaps_next_to_them_are(blocks):
+    from anatomesh.core.model.mesh import Mesh
+    from anatomesh.core.printing import checks as pc
+    from anatomesh.core.printing.solid import part_intersections
+
+    a, b, info = add_connectors(*blocks, clearance=0.2, diameter=5.0)
+    rep = pc.check_parts([a, b], "fdm")
+    assert rep["intersections"] == [] and rep["passed"], [p["reasons"] for p in rep["parts"]]
+    (gap,) = rep["gaps"]
+    assert gap["touching"] and not gap["fuses"] and not gap["intersecting"]
+    # a pin without its pocket overlaps the other part: reported where the pins are
+    (c,) = part_intersections([a, blocks[1]])
+    pins = np.array([p["location"] for p in info["pins"]])
+    assert min(np.linalg.norm(pins - c["location"], axis=1)) < 6.0
+    assert c["location"][0] > 21.5  # inside the second block, where the pins stand
+    # the pocket part pushed 0.5 mm into the pin part: the overlap is reported, pins and all
+    pushed = Mesh(b.vertices - np.array([0.5, 0, 0], np.float32), b.faces, name=b.name)
+    rep = pc.check_parts([a, pushed], "fdm")
+    (c,) = rep["intersections"]
+    assert not rep["passed"] and c["faces_a"] > 100 and 20.5 < c["location"][0] < 24.0
+
+
+def test_touching_faces_are_told_from_crossing_faces():
+    """Face pairs of two parts that only touch: a shared plane triangulated differently on each
+    side, a face meeting another along an edge; crossing: coplanar with the same normal (one
+    part inside the other) or reaching into the other part."""
+    from anatomesh.core.geometry.intersections import crossing_pairs
+    from anatomesh.core.geometry.spatial import TriangleGrid
+    from anatomesh.core.printing.solid import touching_pairs
+    from helpers.meshes import box
+
+    lower = box((0, 0, 0), (6, 6, 3), 3)   # top face z = 3 split into 3 x 3 squares
+    upper = box((0, 0, 3), (6, 6, 5), 4)   # bottom face z = 3 split into 4 x 4 squares
+    rv, rf = box((1, -1, -1), (5, 1, 1), 2)
+    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
+    rv = rv @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]]).T + [0, 3, 3 + np.sqrt(2)]
+    on_edge = (rv, rf)                      # a box resting on lower along one of its edges
+    sunk = box((1, 1, 2.5), (5, 5, 4), 2)  # reaches 0.5 mm into lower
+    assert np.isclose(rv[:, 2].min(), 3.0)
+    for (p, q), touching in (((lower, upper), True), ((lower, on_edge), True), ((lower, sunk), False)):
+        cr = crossing_pairs([p, q])
+        assert len(cr.pairs), "the coplanar faces are found as a crossing by the face test"
+        flags = touching_pairs(cr, [TriangleGrid(*p), TriangleGrid(*q)])
+        assert flags.all() if touching else not flags.all()
+    # a box lying inside the other against its top face: coplanar, same normal, overlapping
+    nested = box((1, 1, 1), (5, 5, 3), 2)
+    cr = crossing_pairs([lower, nested])
+    flags = touching_pairs(cr, [TriangleGrid(*lower), TriangleGrid(*nested)])
+    assert len(flags) and not flags.any()
+
+
+@pytest.fixture(scope="module")
+def vertebrae():
+    """L1 and L2 of the 61-label TotalSegmentator map, smoothed as `anatomesh mesh` does: two
+    touching labels sharing a curved interface."""
+    from conftest import shared
+
+    from anatomesh.core import label_surfaces, load
+    from anatomesh.core.smooth.driver import smooth_surfaces
+
+    names = json.loads(shared("totalsegmentator", "label_names_total_and_total_mr.json").read_text())["total"]
+    value = {n: int(k) for k, n in names.items()}
+    vol = load(shared("totalsegmentator", "example_seg_fast_force_split.nii.gz"))
+    sm, _ = smooth_surfaces(label_surfaces(vol, values=[value["vertebrae_L1"], value["vertebrae_L2"]]),
+                            "organ", distances=False)
+    by_value = {int(m.value): m for m in sm.shells()}
+    l1, l2 = by_value[value["vertebrae_L1"]], by_value[value["vertebrae_L2"]]
+    l1.name, l2.name = "vertebrae_L1", "vertebrae_L2"
+    return l1, l2
+
+
+def test_real_vertebrae_with_pins_pass_the_print_check(vertebrae):
+    from anatomesh.core.printing import checks as pc
+    from anatomesh.core.printing.solid import part_intersections
+
+    l1, l2 = vertebrae
+    assert pc.check_parts([l1, l2], "fdm")["intersections"] == []
+    a, b, info = add_connectors(l1, l2, clearance=0.2)
+    assert len(info["pins"]) == 2
+    rep = pc.check_parts([a, b], "fdm")
+    assert rep["intersections"] == [], rep["intersections"]
+    for p in rep["parts"]:
+        assert p["part_intersections"] == 0 and p["self_intersections"] == 0, p["reasons"]
+    (gap,) = rep["gaps"]
+    assert gap["touching"] and not gap["fuses"]
+    # each pocket stays inside L2 with a wall around it: it breaks out nowhere
+    assert self_intersections(b.vertices.astype(np.float64), b.faces).shape == (0, 2)
+    # the pins pushed into L2 without their pockets: a crossing, where the pins are
+    (c,) = part_intersections([a, l2])
+    pins = np.array([p["location"] for p in info["pins"]])
+    faces = a.vertices[a.faces[c["faces_a"]]].mean(axis=1)
+    assert np.all(np.min(np.linalg.norm(faces[:, None] - pins[None], axis=2), axis=1) < 10.0)
