@@ -39,6 +39,7 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     surfaces (isosurfaces) one by one. Returns ``{object name: shell measures}`` (core's keys:
     ``faces_before``, ``faces_after``, ``hausdorff_mm``, ``mean_mm``, ``volume_change_pct``).
     """
+    from ..app.stages import output_shells
     from ..core.decimate.qem import decimate_mesh, decimate_surfaces
     from ..core.model.errors import AnatomeshError
     from ..core.model.mesh import Mesh
@@ -54,10 +55,10 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     if shared:
         ss, members = surface_set_from_objects(shared)
         out, rep = decimate_surfaces(ss, progress=progress, **kwargs)
-        shells = {int(m.value): m for m in out.shells()}
+        shells = {int(m.value): m for m in output_shells(out)[0]}
         for k, o in enumerate(members):
             m = shells[k + 1]
-            write_surface(o, m.vertices, m.faces, m.meta["vertex_ids"])
+            write_surface(o, m.vertices, m.faces, m.meta["vertex_ids"], out.vertices[m.meta["vertex_ids"]])
             results[o.name] = rep["shells"][k + 1]
     for o in alone:
         v, f = bridge.arrays(o.data)
@@ -79,15 +80,16 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     return results
 
 
-def write_surface(obj, vertices, faces, vertex_ids=None) -> None:
-    """New geometry for a surface object (materials and name stay): it becomes the rest shape;
-    ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The edges come
-    from the core (:func:`anatomesh.addon.live_iso.set_triangles`)."""
+def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
+    """New geometry for a surface object (materials and name stay): it becomes the rest shape
+    (``rest``, default ``vertices``: the set's positions before the pinch points are moved
+    apart); ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The
+    edges come from the core (:func:`anatomesh.addon.live_iso.set_triangles`)."""
     from .live_iso import set_triangles
 
     me = obj.data
     set_triangles(me, vertices, faces)
-    bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
+    bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices if rest is None else rest, "vector")
     if live.LATTICE_ATTRIBUTE in me.attributes:  # decimated vertices left their lattice cells
         me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])
     if vertex_ids is not None:

@@ -40,12 +40,29 @@ class LiveScan:
     """The unsmoothed surfaces of one scan collection.
 
     ``layers``: one SurfaceSet per layer (vertices float32 mm, as extracted); ``members``:
-    ``(object name, layer, index (N_obj,) into that layer's vertices)``; ``sessions``: the
-    smoothing session of each layer, made on first use."""
+    ``(object name, layer, index (N_obj,) into that layer's vertices, the set label it shows)``;
+    ``sessions``: the smoothing session of each layer, made on first use; ``shown``: each
+    layer's set positions last shown (before the pinch points are moved apart)."""
 
     layers: List[object]
-    members: List[Tuple[str, int, np.ndarray]] = field(default_factory=list)
+    members: List[Tuple[str, int, np.ndarray, int]] = field(default_factory=list)
     sessions: Dict[int, object] = field(default_factory=dict, repr=False)
+    shown: Optional[List[np.ndarray]] = field(default=None, repr=False)
+
+    def pinches_resolved(self, positions: List[np.ndarray]) -> Dict[str, np.ndarray]:
+        """Each object's positions gathered from its layer's set at ``positions`` (one (N, 3)
+        array per layer), the pinch points resolved as the pipeline's files show them
+        (:func:`anatomesh.core.geometry.pinches.pinch_moves`)."""
+        from ..core.geometry.pinches import apply_moves, copy_numbers, pinch_gap_mm, pinch_moves
+
+        moves = [pinch_moves(sset.copy_with_vertices(pos), pinch_gap_mm(sset.affine))
+                 if len(sset.splits) else None for sset, pos in zip(self.layers, positions)]
+        out = {}
+        for name, k, idx, label in self.members:
+            pos = positions[k][idx]
+            out[name] = pos if moves[k] is None else apply_moves(pos, idx, copy_numbers(idx),
+                                                                  label, moves[k])
+        return out
 
     def session(self, k: int):
         if k not in self.sessions:
@@ -79,8 +96,8 @@ def live_scan(collection: bpy.types.Collection) -> LiveScan:
     """The cached unsmoothed surfaces, rebuilt from the objects' attributes when missing/stale."""
     scan = _CACHE.get(collection.name)
     objs = scene.surface_objects(collection)
-    if scan is not None and {n for n, _, _ in scan.members} == {o.name for o in objs} and all(
-            len(bpy.data.objects[n].data.vertices) == len(idx) for n, _, idx in scan.members):
+    if scan is not None and {m[0] for m in scan.members} == {o.name for o in objs} and all(
+            len(bpy.data.objects[n].data.vertices) == len(idx) for n, _, idx, _ in scan.members):
         return scan
     scan = rebuild(objs)
     _CACHE[collection.name] = scan
@@ -103,7 +120,7 @@ def rebuild(objects) -> LiveScan:
                 full[_ids(o)] = np.round(lat).astype(np.int32)
             sset.lattice = full
         layers.append(sset)
-        members += [(o.name, k, _ids(o)) for o in order]
+        members += [(o.name, k, _ids(o), i + 1) for i, o in enumerate(order)]  # object i: label i + 1
     return LiveScan(layers, members)
 
 
@@ -132,10 +149,12 @@ def smooth_collection(collection: bpy.types.Collection) -> float:
     positions = [sset.vertices if method == "none" or not sset.n_faces
                  else scan.session(k).run(method, **settings)[0] for k, sset in enumerate(scan.layers)]
     seconds = time.perf_counter() - t0
-    for name, k, idx in scan.members:
+    scan.shown = positions
+    shown = scan.pinches_resolved(positions)
+    for name, k, idx, _ in scan.members:
         obj = bpy.data.objects.get(name)
         if obj is not None and len(obj.data.vertices) == len(idx):
-            bridge.set_positions(obj.data, positions[k][idx])
+            bridge.set_positions(obj.data, shown[name])
     return seconds
 
 
@@ -173,8 +192,13 @@ def smooth_when_ready(collection: bpy.types.Collection) -> Optional[float]:
 
 def apply(collection: bpy.types.Collection) -> None:
     """Make the current (smoothed) positions the new unsmoothed copy; smoothing back to none."""
+    scan = live_scan(collection)
+    if scan.shown is not None:  # the set's positions, before the pinch points are moved apart
+        for name, k, idx, _ in scan.members:
+            obj = bpy.data.objects.get(name)
+            if obj is not None and len(obj.data.vertices) == len(idx):
+                bridge.set_point_attribute(obj.data, bridge.REST_ATTRIBUTE, scan.shown[k][idx], "vector")
     for o in scene.surface_objects(collection):
-        bridge.set_point_attribute(o.data, bridge.REST_ATTRIBUTE, bridge.positions(o.data), "vector")
         if LATTICE_ATTRIBUTE in o.data.attributes:  # the vertices left their lattice cells' centres
             o.data.attributes.remove(o.data.attributes[LATTICE_ATTRIBUTE])
     forget(collection.name)

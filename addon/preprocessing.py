@@ -35,7 +35,7 @@ def extract_preprocessed(context, volume, recipe, progress=None) -> bpy.types.Co
     prepared, pre = preprocess.prepare(volume, recipe, progress)
     sset = preprocess.extract(prepared, recipe, pre, progress)
     sset = sset if sset is not None else stages.extract(prepared, recipe, progress)
-    meshes = [m for m in sset.shells() if m.n_faces]
+    meshes = [m for m in stages.output_shells(sset)[0] if m.n_faces]
     if pre is not None and recipe.difference_colors:
         pre.difference = color_differences(meshes, preprocess.raw_surfaces(pre.base, recipe).shells())
     coll = scan.scan_to_scene(context, prepared, [(m, 0) for m in meshes], [sset], list(sset.warnings))

@@ -20,6 +20,7 @@ def surface_set_from_objects(objects, rest: bool = False) -> Tuple[object, List]
     Positions are the objects' current ones (the shape shown), or with ``rest`` their unsmoothed
     ones (``anatomesh_rest``). No lattice (the live cache adds it). Returns ``(SurfaceSet, objects)``.
     """
+    from ..core.geometry.pinches import copy_numbers
     from ..core.model.errors import AnatomeshError
     from ..core.model.surfaceset import SurfaceSet
 
@@ -33,10 +34,11 @@ def surface_set_from_objects(objects, rest: bool = False) -> Tuple[object, List]
     verts = np.zeros((n, 3), np.float32)
     occ_faces, occ_owner, occ_copy = [], [], []
     for k, (o, pos, tri, vid) in enumerate(parts):
-        verts[vid] = pos
+        first = copy_numbers(vid) == 0  # a pinch point's copies sit beside it, not on it
+        verts[vid[first]] = pos[first]
         occ_faces.append(vid[tri])
         occ_owner.append(np.full(len(tri), k + 1, np.int32))
-        occ_copy.append(_copy_numbers(vid)[tri])
+        occ_copy.append(copy_numbers(vid)[tri])
     g = np.concatenate(occ_faces)
     own = np.concatenate(occ_owner)
     copy = np.concatenate(occ_copy)
@@ -72,14 +74,3 @@ def surface_set_from_objects(objects, rest: bool = False) -> Tuple[object, List]
     ss = SurfaceSet(verts, faces, np.c_[inside, outside], None, affine,
                     space=str(objects[0].get("anatomesh_space", "RAS")), splits=rows, background=0)
     return ss, [o for o, _, _, _ in parts]
-
-
-def _copy_numbers(vid: np.ndarray) -> np.ndarray:
-    """For each vertex of one object: 0 for the first vertex with its id, 1, 2, ... for copies."""
-    order = np.argsort(vid, kind="stable")
-    s = vid[order]
-    start = np.r_[0, np.flatnonzero(s[1:] != s[:-1]) + 1]
-    run = np.repeat(start, np.diff(np.r_[start, len(s)]))
-    out = np.empty(len(vid), np.int64)
-    out[order] = np.arange(len(s)) - run
-    return out

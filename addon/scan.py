@@ -174,7 +174,7 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
                             say=first_run):
         layers = [stages.extract(layer, lrecipe, progress)
                   for layer, lrecipe in stages.layers_of(volume, recipe)]
-    items = [(m, k) for k, sset in enumerate(layers) for m in sset.shells() if m.n_faces]
+    items = [(m, k) for k, sset in enumerate(layers) for m in stages.output_shells(sset)[0] if m.n_faces]
     warnings = [w for sset in layers for w in sset.warnings]
     if not volume.is_label_map:
         made = {float(m.value) for m, _ in items}
@@ -194,6 +194,7 @@ def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: 
     unsmoothed SurfaceSets the live smoothing starts from). Used by :func:`extract_to_scene` and
     by the headless pipeline (``addon/headless.py``).
     """
+    from ..core.geometry.pinches import shell_label
     from ..core.model.errors import AnatomeshError
 
     if not items:
@@ -208,10 +209,11 @@ def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: 
         if len(tuple(m.color)) > 3:  # issue 15: fuzzy shells carry their opacity in an RGBA colour
             props["anatomesh_alpha"] = float(m.color[3])
         obj = scene.add_surface(coll, name, m.vertices, m.faces, props,
-                                color, render_method, shared_index=ids, vertex_colors=m.vertex_colors)
+                                color, render_method, shared_index=ids, vertex_colors=m.vertex_colors,
+                                rest=layers[k].vertices[ids])
         obj[live.LAYER_PROPERTY] = k + 1
         live.store([(obj, ids)], k, layers[k])
-        members.append((obj.name, k, ids))
+        members.append((obj.name, k, ids, shell_label(layers[k], m)))
     live.remember(coll, live.LiveScan(list(layers), members))
     context.scene.anatomesh.last_collection = coll.name
     return coll

@@ -81,17 +81,20 @@ def scan_name(path) -> str:
 def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarray, faces: np.ndarray,
                 props: Dict, color: Sequence[float] = (0.8, 0.8, 0.8), render_method: str = "DITHERED",
                 shared_index: Optional[np.ndarray] = None,
-                vertex_colors: Optional[np.ndarray] = None) -> bpy.types.Object:
+                vertex_colors: Optional[np.ndarray] = None,
+                rest: Optional[np.ndarray] = None) -> bpy.types.Object:
     """Create one surface object in ``collection``.
 
     ``vertices`` (N, 3) mm, ``faces`` (M, 3); ``props`` are written as custom properties (see
-    :data:`OBJECT_PROPS`); the unsmoothed positions are kept as the ``anatomesh_rest`` attribute
-    and, when given, each vertex's index in the shared surface set as ``anatomesh_vid``.
+    :data:`OBJECT_PROPS`); the unsmoothed positions (``rest``, default ``vertices``: for a shell,
+    its set's positions, before its pinch points are moved apart) are kept as the
+    ``anatomesh_rest`` attribute and, when given, each vertex's index in the shared surface set
+    as ``anatomesh_vid``.
     ``vertex_colors`` (N, 3|4) sRGB, optional: the colour attribute :data:`COLOR_ATTRIBUTE`
     (active, shown when the viewport colours by attribute).
     """
     me = bridge.new_mesh(name, vertices, faces)
-    bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices, "vector")
+    bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices if rest is None else rest, "vector")
     if shared_index is not None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, shared_index, "int")
     if vertex_colors is not None:

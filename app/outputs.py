@@ -23,7 +23,7 @@ from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
 from .recipe import DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
-from .stages import clean
+from .stages import clean, output_shells
 
 #: entry-point group through which the add-on offers its ``.blend``/PNG writer (pyproject.toml)
 BLENDER_ENTRY_POINTS = "anatomesh.blender"
@@ -50,11 +50,23 @@ class Plan:
                 + self.lods + [self.report, self.recipe] + self.extra)
 
 
+def refuse_existing(recipe: Recipe) -> None:
+    """Before anything is read: raise :class:`AnatomeshError` when the run's report or recipe file
+    exists and ``recipe.overwrite`` is not set (every run writes both, so a folder holding an
+    earlier run's results is refused at once; :func:`plan` checks every other file)."""
+    report_path = _report_path(recipe)
+    refuse_overwrite([report_path, report_path.parent / RECIPE_FILE], recipe.overwrite)
+
+
+def _report_path(recipe: Recipe) -> Path:
+    return Path(recipe.report) if recipe.report else Path(recipe.out_dir) / "report.json"
+
+
 def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     """The paths of every output of ``recipe`` for ``meshes``; raises :class:`AnatomeshError`
     when one exists and ``recipe.overwrite`` is not set (nothing is written then)."""
     out_dir = Path(recipe.out_dir)
-    report_path = Path(recipe.report) if recipe.report else out_dir / "report.json"
+    report_path = _report_path(recipe)
     stem = scan_stem(volume, recipe)
     stems = unique_stems([m.name for m in meshes], [m.value for m in meshes])
     per_surface = [{fmt: out_dir / f"{s}.{FILE_SUFFIX.get(fmt, fmt)}" for fmt in recipe.formats
@@ -130,7 +142,7 @@ def write_lods(surfaces: SurfaceSet, recipe: Recipe, p: Plan,
     out = []
     for i, path in enumerate(p.lods):
         k = pm.n_levels - 1 - min(i, pm.n_levels - 1)
-        meshes = pm.level(k).shells()
+        meshes, _ = output_shells(pm.level(k))
         for m in meshes:
             clean(m, recipe)
         worst = {"hausdorff_mm": 0.0, "mean_mm": 0.0}

@@ -171,11 +171,23 @@ class Recipe:
     precise: bool = False
     difference_colors: bool = False
 
+    def smoothing_overrides(self) -> Dict:
+        """What this recipe sets of the smoothing preset's own settings (``iterations``, ``lam``,
+        ``mu``; those left at None are the preset's)."""
+        return {k: v for k, v in (("iterations", self.iterations), ("lam", self.lam), ("mu", self.mu))
+                if v is not None}
+
 
 def check_recipe(recipe: Recipe) -> None:
-    """Raise :class:`AnatomeshError` (one line, naming the setting) for a setting out of range."""
+    """Raise :class:`AnatomeshError` (one line, naming the setting) for a setting out of range;
+    reads no input file. Normalises ``recipe`` in place (format names, fit, margins): a run
+    checks its own copy."""
     if not recipe.input:
         raise AnatomeshError("no input scan: give a path (or input.path in a recipe)")
+    if recipe.smooth != SMOOTH_NONE:
+        from ..core.smooth.presets import check_settings
+
+        check_settings(recipe.smooth, **recipe.smoothing_overrides())
     recipe.formats = [str(f).strip().lower().lstrip(".") for f in recipe.formats]
     bad = [f for f in recipe.formats if f not in FORMATS]
     if bad or not recipe.formats:

@@ -3,7 +3,10 @@
 ``report.json`` holds ``space``, ``units``, ``input`` (facts of the volume read), ``recipe``,
 ``smoothing``, ``decimation``, ``files``, ``timings``, ``warnings`` and one entry per surface:
 ``value, name, color, files, vertices, faces, volume_mm3, area_mm2, closed, manifold, oriented,
-euler, genus, components, degenerate_faces``; with smoothing also ``volume_change_pct``,
+euler, genus, components, degenerate_faces, pinch_points`` (the topology measured on the surface
+as written, read back by position; ``pinch_points``: vertex copies moved apart where the
+structure touches itself, summed up with the rule and gap in the report's ``pinch_points``);
+with smoothing also ``volume_change_pct``,
 ``max_deviation_mm``, ``mean_deviation_mm`` (symmetric Hausdorff and mean distance to the
 unsmoothed surface), ``max_displacement_mm``, ``topology_changed``; with decimation
 ``faces_before``, ``decimation_max_error_mm``, ``decimation_mean_error_mm`` and
@@ -52,6 +55,8 @@ def build_report(result: "Result") -> Dict:
     out["notes"] = list(facts["meta"].get("notes") or [])
     if p.dicom_reference and p.dicom_reference.get("note"):
         out["notes"].append(p.dicom_reference["note"])
+    if result.pinch_points is not None:
+        out["pinch_points"] = result.pinch_points
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)
@@ -63,10 +68,12 @@ def build_report(result: "Result") -> Dict:
 
 
 def surface_sizes(meshes: List[Mesh]) -> List[Tuple[Topology, float, float]]:
-    """Per mesh ``(topology, area mm², enclosed volume mm³)`` for its entry
-    (:func:`~anatomesh.core.geometry.topology.topology_and_size`; its kernels release the GIL,
+    """Per mesh ``(topology, area mm², enclosed volume mm³)`` for its entry, the topology of the
+    surface as written and read back by position (vertices at the same float32 position joined,
+    as STL readers, slicers and mesh tools do:
+    :func:`~anatomesh.core.geometry.topology.topology_and_size`; its kernels release the GIL,
     so :func:`~anatomesh.app.run.run` computes them while the files are written)."""
-    return [topology_and_size(m.vertices, m.faces) for m in meshes]
+    return [topology_and_size(m.vertices, m.faces, by_position=True) for m in meshes]
 
 
 def surface_entry(m: Mesh, size: Tuple[Topology, float, float], extra: Dict,
@@ -82,7 +89,8 @@ def surface_entry(m: Mesh, size: Tuple[Topology, float, float], extra: Dict,
             "area_mm2": round(area, 3),
             "closed": topo.closed, "manifold": topo.manifold, "oriented": topo.oriented,
             "euler": topo.euler, "genus": topo.genus, "components": topo.components,
-            "degenerate_faces": topo.degenerate_faces, **_smoothing_fields(smoothing, m),
+            "degenerate_faces": topo.degenerate_faces,
+            "pinch_points": int(m.meta.get("pinch_points", 0)), **_smoothing_fields(smoothing, m),
             **_decimation_fields(decimation, m), **extra}
 
 

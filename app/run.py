@@ -8,6 +8,8 @@ path before anything is written (existing files are refused unless ``overwrite``
 """
 from __future__ import annotations
 
+import copy
+
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -52,6 +54,7 @@ class Result:
     preprocess: Optional[Dict] = None  # issue 15: steps, parameters, measured effects
     input_facts: Optional[Dict] = None  # the input's facts for the report (describe, no histogram)
     surface_sizes: Optional[List] = None  # per surface (topology, area, volume): report.surface_sizes
+    pinch_points: Optional[Dict] = None  # pinch points resolved in the shells (stages.output_shells)
 
     @property
     def report_path(self):
@@ -71,7 +74,9 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     (:meth:`~anatomesh.core.model.volume.Volume.release_voxels`) when nothing after extraction
     reads them (no preprocessing, no Blender scene): the smoothing's peak no longer holds the
     input (chest CT: 74 MB; an 834x512x512 map: 218 MB)."""
+    recipe = copy.deepcopy(recipe)  # the run resolves its own copy: the caller's stays as asked
     check_recipe(recipe)
+    outputs.refuse_existing(recipe)
     blender = outputs.blender_writer() if any(f in BLENDER_FORMATS for f in recipe.formats) else None
     clock = _Clock(progress)
     clock.start("read", 0.0, "reading")
@@ -197,7 +202,7 @@ def _layered_surfaces(volume, recipe: Recipe, clock: "_Clock", res: Result, pre=
     clock.start("shells", 0.7, "splitting into shells")
     res.smoothing, res.decimation = stages.merge_reports(smoothing, decimation)
     res.surface_set = stack_surface_sets(sets)
-    res.surfaces, res.cleaning, fix = stages.shells(res.surface_set, recipe)
+    res.surfaces, res.cleaning, fix, res.pinch_points = stages.shells(res.surface_set, recipe)
     res.fixes += [fix] if fix else []
     return warnings
 

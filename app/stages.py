@@ -12,7 +12,8 @@ surfaces:
 :func:`smooth`           the default (guarded) smoothing of the whole set
 :func:`decimate`         quadric decimation of the whole set (seams stay shared)
 :func:`shells`           one closed Mesh per label/level (the clearance fix pulls touching parts
-                         apart), small components dropped as asked
+                         apart), pinch points resolved, small components dropped as asked
+:func:`output_shells`    the shells as every writer shows them (pinch points resolved)
 :func:`layers_of`        the label-map layers of a Segmentation (overlapping structures), each
                          run through the stages on its own
 :func:`merge_reports`    one smoothing/decimation report for all layers
@@ -25,6 +26,7 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from ..core.geometry.pinches import pinch_gap_mm, separate_shells
 from ..core.geometry.topology import component_measures
 from ..core.model.errors import AnatomeshError
 from ..core.model.labels import LabelInfo, select_labels
@@ -107,8 +109,7 @@ def smoothing(recipe: Recipe) -> Tuple[str, Dict]:
     """``(method, settings)`` of the smoothing driver for ``recipe``: the preset or filter name and
     the keyword arguments of :func:`anatomesh.core.smooth.driver.smooth_surfaces` (iterations,
     λ, μ, max deviation, damping distance, staircase)."""
-    settings = {k: v for k, v in (("iterations", recipe.iterations), ("lam", recipe.lam),
-                                  ("mu", recipe.mu)) if v is not None}
+    settings = recipe.smoothing_overrides()
     settings.update(max_deviation=recipe.max_deviation, damping_distance=recipe.damping_distance,
                     staircase={"auto": "auto", "on": True, "off": False}[recipe.staircase])
     return recipe.smooth or SMOOTH_NONE, settings
@@ -162,19 +163,30 @@ def decimate(surfaces: SurfaceSet, recipe: Recipe, default_cap: Optional[float] 
     return out, summary
 
 
-def shells(surfaces: SurfaceSet, recipe: Recipe) -> Tuple[List[Mesh], List[Dict], Optional[Dict]]:
-    """One closed Mesh per label (or level): pulled apart along shared interfaces by the clearance
-    fix when ``recipe.clearance`` (mm) is set, then cleaned as the recipe asks (``keep_largest``,
-    ``min_component_mm3``). Returns the meshes, what cleaning dropped per mesh, and the clearance
-    fix's entry (None without it)."""
+def shells(surfaces: SurfaceSet, recipe: Recipe) -> Tuple[List[Mesh], List[Dict], Optional[Dict], Dict]:
+    """One closed Mesh per label (or level), as files show it: pulled apart along shared
+    interfaces by the clearance fix when ``recipe.clearance`` (mm) is set, pinch points resolved
+    (:func:`output_shells`), then cleaned as the recipe asks (``keep_largest``,
+    ``min_component_mm3``). Returns the meshes, what cleaning dropped per mesh, the clearance
+    fix's entry (None without it) and the pinch points' entry."""
     fix = None
     if recipe.clearance is not None:
         from ..core.printing import fixes as printfix
         meshes, info = printfix.separate_parts(surfaces, recipe.clearance)
         fix = {"fix": "clearance", **info}
+        pinches = separate_shells(surfaces, meshes, pinch_gap_mm(surfaces.affine))
     else:
-        meshes = surfaces.shells()
-    return meshes, [clean(m, recipe) for m in meshes], fix
+        meshes, pinches = output_shells(surfaces)
+    return meshes, [clean(m, recipe) for m in meshes], fix, pinches
+
+
+def output_shells(surfaces: SurfaceSet) -> Tuple[List[Mesh], Dict]:
+    """The shells of ``surfaces`` as every writer and the Blender scene show them: where a label
+    touches itself along a voxel edge or at a corner, the touching parts are moved a small stated
+    gap apart (:mod:`anatomesh.core.geometry.pinches`), so each file is 2-manifold when read back
+    by position. Returns the meshes and the report's ``pinch_points`` entry."""
+    meshes = surfaces.shells()
+    return meshes, separate_shells(surfaces, meshes, pinch_gap_mm(surfaces.affine))
 
 
 def clean(m: Mesh, recipe: Recipe) -> Dict:

@@ -25,11 +25,13 @@ EXTRA_STEPS = ("more data types", "decimation and levels of detail", "print chec
 
 
 def _label_map(dtype, big: int = 0) -> np.ndarray:
-    """12x11x9 map: a ball (label 1 or ``big``) beside a box (label 2) it touches."""
+    """12x11x9 map: a ball (label 1 or ``big``) beside a box (label 2) it touches, and a voxel
+    of label 2 touching the box at a corner (a pinch point and a speck)."""
     i, j, k = np.ogrid[:12, :11, :9]
     data = np.zeros((12, 11, 9), dtype)
     data[(i - 5) ** 2 + (j - 5) ** 2 + (k - 4) ** 2 <= 10] = big or 1
     data[7:11, 3:8, 2:7] = 2
+    data[11, 8, 7] = 2
     return data
 
 
@@ -151,6 +153,8 @@ def _label_smoothing(folder: Path) -> None:
         s = label_surfaces(_label_map(np.uint8), affine=np.diag(list(spacing) + [1.0]))
         session = SmoothingSession(s)
         out = session.run(method, **settings)[0]
+    for dtype in (np.float32, np.float64):  # the component guard on the kept and the working positions
+        session.components().volumes(out.astype(dtype))
     _rounds_after_untangling(session, out)  # organs that touch, e.g. the sample's
 
 

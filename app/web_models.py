@@ -23,7 +23,7 @@ from ..core.model.errors import AnatomeshError
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
-from .stages import clean
+from .stages import clean, output_shells
 from .web import WebModel
 
 #: how many times fewer faces each coarser level has
@@ -47,7 +47,7 @@ def set_levels(surfaces: SurfaceSet, final: List[Mesh], n_levels: int, clean=Non
     pm = progressive(surfaces, face_ratios=ratios, progress=progress)
     levels = []
     for k in range(pm.n_levels - 1):
-        shells = pm.level(k).shells()
+        shells, _ = output_shells(pm.level(k))
         for m in shells:
             if clean is not None:
                 clean(m)

@@ -79,8 +79,8 @@ def encapsulated_stl(mesh: Mesh, reference: Dict, instance: int = 1,
     ds.SOPClassUID = ENCAPSULATED_STL
     ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
     for key in COPIED:  # Patient, General Study (type 2: present, maybe empty)
-        setattr(ds, key, reference.get(key, ""))
-    ds.StudyID = str(ds.StudyID)[:16]  # SH: some sources carry longer values
+        value = reference.get(key, "")
+        setattr(ds, key, str(value)[:16] if key == "StudyID" else value)  # SH: some carry more
     ds.Modality = "M3D"  # Encapsulated Document Series
     ds.SeriesInstanceUID = reference["SeriesInstanceUID_out"]
     ds.SeriesNumber = int(reference.get("SeriesNumber_out", 9001))
@@ -112,7 +112,6 @@ def encapsulated_stl(mesh: Mesh, reference: Dict, instance: int = 1,
             series.SeriesInstanceUID = reference["SourceSeriesInstanceUID"]
             series.ReferencedInstanceSequence = [src]
             ds.ReferencedSeriesSequence = [series]
-    ds.is_little_endian, ds.is_implicit_VR = True, False
     return ds
 
 

@@ -2,7 +2,7 @@
 
 * :func:`tri_tri` — Möller 1997 ("A fast triangle-triangle intersection test") on scalars, no
   temporary arrays: the same arithmetic, in the same order, as
-  ``_intersect_kernels.tri_tri_intersect`` (so the same answer bit for bit), ~20x faster.
+  ``kernels.tri_tri_intersect`` (so the same answer bit for bit), ~20x faster.
 * :func:`bucket_faces` — faces bucketed by the cell of their extent's low corner (columns
   (x, y) in a dense table, z sorted inside a column);
 * :func:`sweep_csr` — a sweep over the buckets: the candidate pairs, or the crossing ones;

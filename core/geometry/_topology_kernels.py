@@ -152,3 +152,33 @@ def _sort_order(keys, m, order):
                 u -= gap
             order[u] = x
         gap //= 3
+
+
+@njit(cache=True, nogil=True)
+def weld_positions(bits, ids):
+    """Number the distinct rows of ``bits`` (N, 3) uint32 (the float32 bit patterns of vertex
+    positions, -0.0 already made 0.0) in order of first appearance into ``ids`` (N,) int64, with
+    a hash table of linear probing; returns how many are distinct."""
+    n = bits.shape[0]
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    table = np.full(size, -1, np.int64)
+    distinct = 0
+    for i in range(n):
+        h = np.uint64(bits[i, 0]) * np.uint64(0x9E3779B97F4A7C15)
+        h ^= np.uint64(bits[i, 1]) * np.uint64(0xC2B2AE3D27D4EB4F)
+        h ^= np.uint64(bits[i, 2]) * np.uint64(0x165667B19E3779F9)
+        slot = np.int64((h ^ (h >> np.uint64(29))) & np.uint64(size - 1))
+        while True:
+            j = table[slot]
+            if j < 0:
+                table[slot] = i
+                ids[i] = distinct
+                distinct += 1
+                break
+            if bits[j, 0] == bits[i, 0] and bits[j, 1] == bits[i, 1] and bits[j, 2] == bits[i, 2]:
+                ids[i] = ids[j]
+                break
+            slot = (slot + 1) & (size - 1)
+    return distinct

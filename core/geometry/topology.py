@@ -113,12 +113,20 @@ def topology(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0) -> 
     return topology_and_size(vertices, faces, min_area)[0]
 
 
-def topology_and_size(vertices: np.ndarray, faces: np.ndarray,
-                      min_area: float = 0.0) -> Tuple[Topology, float, float]:
+def topology_and_size(vertices: np.ndarray, faces: np.ndarray, min_area: float = 0.0,
+                      by_position: bool = False) -> Tuple[Topology, float, float]:
     """``(topology, area mm², enclosed volume mm³)``: :func:`topology` and
-    :func:`area_and_volume` from one pass over the faces (a report's per-surface facts)."""
+    :func:`area_and_volume` from one pass over the faces (a report's per-surface facts).
+
+    ``by_position``: the topology of the surface as a file reader sees it, vertices at the same
+    float32 position joined (:func:`position_ids`; STL stores positions only, and slicers and
+    mesh tools merge them), not the vertex indices."""
     v = _point_array(vertices)
     f = _index_array(faces)
+    if by_position and f.shape[0]:
+        ids, distinct = position_ids(v)
+        if distinct < v.shape[0]:
+            v, f = v[np.unique(ids, return_index=True)[1]], np.ascontiguousarray(ids[f], np.int32)
     if f.shape[0] == 0:
         return Topology(0, 0, 0, 0, 0, None, False, True, True, 0, 0, 0, 0), 0.0, 0.0
     area, volume, ndeg, repeated = _topology_kernels.face_measures(v, f, float(min_area))
@@ -153,6 +161,15 @@ def area_and_volume(vertices: np.ndarray, faces: np.ndarray) -> Tuple[float, flo
         return 0.0, 0.0
     area, volume, _, _ = _topology_kernels.face_measures(_point_array(vertices), f, 0.0)
     return float(area), float(volume)
+
+
+def position_ids(vertices: np.ndarray) -> Tuple[np.ndarray, int]:
+    """``(ids (N,) int64, distinct)``: vertices at the same float32 position (as STL, PLY and GLB
+    store them) get the same id, numbered 0, 1, ... in order of first appearance; linear time."""
+    p = np.ascontiguousarray(vertices, np.float32).reshape(-1, 3) + np.float32(0.0)  # -0.0 → 0.0
+    ids = np.empty(p.shape[0], np.int64)
+    distinct = _topology_kernels.weld_positions(p.view(np.uint32), ids)
+    return ids, int(distinct)
 
 
 def _point_array(vertices: np.ndarray) -> np.ndarray:

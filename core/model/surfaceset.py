@@ -145,7 +145,9 @@ class SurfaceSet:
         Vertices are compacted (shared ones first, then the split copies); ``meta["vertex_ids"]``
         gives, for each shell vertex, its index in this set's ``vertices`` (so results computed on
         the set map back, and vice versa); ``meta["copies"]`` counts the split copies, which sit
-        at the position of their shared vertex.
+        at the position of their shared vertex (the last ``copies`` vertices, in the order of
+        their copy numbers). Files show the shells with their pinch points resolved
+        (:mod:`anatomesh.core.geometry.pinches`).
 
         Raises
         ------

@@ -11,6 +11,7 @@ import pytest
 
 from anatomesh.app.cli import main
 from anatomesh.core.io.mesh_files import read_stl
+from helpers.readback import pinch_volume_bound
 from conftest import SAMPLE, shared
 
 SEG = SAMPLE / "example_seg.nii.gz"
@@ -81,8 +82,8 @@ def test_mesh_label_subset_lands_on_the_voxels(capsys, tmp_path):
     for name, value in (("liver", 5), ("spleen", 1)):
         s = surf[name]
         assert s["closed"] and s["manifold"] and s["genus"] is not None
-        # the raw surface encloses exactly the label's voxels
-        assert s["volume_mm3"] == pytest.approx((data == value).sum() * 27.0, rel=1e-6)
+        # the raw surface encloses exactly the label's voxels (but at its pinch points)
+        assert abs(s["volume_mm3"] - (data == value).sum() * 27.0) <= pinch_volume_bound(s["pinch_points"], s["volume_mm3"], 27.0)
         tri = read_stl(out_dir / s["files"]["stl"])
         assert b"SPACE=RAS" in tri["header"]
         pts = tri["triangles"].reshape(-1, 3)
@@ -179,18 +180,28 @@ def test_mesh_decimate_flag_reports_the_error_in_mm(capsys, tmp_path):
 
 
 def test_mesh_check_exit_codes(capsys, tmp_path):
-    # the spleen is a compact solid: it passes; the liver's rims in this 3 mm map are rims, not thin
-    # spots (issue 18): it passes too, until the minimum wall is 5 mm
+    # the spleen is a compact solid: it passes; the liver's edges in this 3 mm map are tapering rims
+    # a printer blunts by a fraction of its line: at a 5 mm minimum wall they pass with a warning
+    # each; at 12 mm the waists between its lobes are thinner than the wall: it fails
     code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "spleen", "--labels", "spleen,liver", "--check")
     assert code == 0, err
     assert "print check (fdm): passed" in out
     assert json.loads((tmp_path / "spleen" / "report.json").read_text())["print_check"]["passed"] is True
-    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "liver", "--labels", "liver", "--check",
+    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "liver5", "--labels", "liver", "--check",
                          "--min-wall", "5")
+    assert code == 0, err
+    (part,) = json.loads((tmp_path / "liver5" / "report.json").read_text())["print_check"]["parts"]
+    assert part["passed"] and part["warnings"]
+    assert all("a printer blunts it by about" in w for w in part["warnings"])
+    assert 0 < part["rims"]["max_cut_back_mm"] <= 0.4  # within the fdm line
+    code, out, err = run(capsys, "mesh", SEG, "--out", tmp_path / "liver12", "--labels", "liver", "--check",
+                         "--min-wall", "12")
     assert code == 1
     assert "FAILED" in err and "liver" in err
-    pc = json.loads((tmp_path / "liver" / "report.json").read_text())["print_check"]
-    assert pc["passed"] is False and pc["parts"][0]["min_wall_mm"] < pc["profile"]["min_wall"]
+    pc = json.loads((tmp_path / "liver12" / "report.json").read_text())["print_check"]
+    (part,) = pc["parts"]
+    assert pc["passed"] is False and part["reasons"]
+    assert any(r["kind"] == "pinch" and r["thickness_mm"] < 12 for r in part["thin_regions"])
     code, _, err = run(capsys, "mesh", SEG, "--out", tmp_path / "bad", "--labels", "spleen", "--check",
                        "--min-wall", "-1")
     assert code == 2 and "--min-wall" in err

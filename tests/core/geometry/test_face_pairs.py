@@ -4,7 +4,7 @@ import pytest
 
 from anatomesh.core.extract.multilabel import label_surfaces
 from anatomesh.core.geometry import _face_pair_kernels as K
-from anatomesh.core.geometry import _intersect_kernels as IK
+from anatomesh.core.geometry import kernels as IK
 from anatomesh.core.geometry.face_pairs import FaceBoxes, candidate_pairs, crossing_pairs_among
 from anatomesh.core.geometry.intersections import self_intersections
 from anatomesh.core.model.errors import AnatomeshError
