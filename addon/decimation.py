@@ -2,7 +2,7 @@
 Blender's Decimate modifier."""
 from __future__ import annotations
 
-from typing import Dict
+from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -23,54 +23,37 @@ ERROR_PROPS = (
 )
 
 
-def _core_target(target: str, ratio: float, faces: int, max_error: float, total_faces: int) -> Dict:
+def decimation_recipe(target: str, ratio: float, faces: int, max_error: float):
+    """The run's decimation settings for the panel's target ("RATIO", "FACES" or "ERROR"): what
+    ``anatomesh mesh --decimate RATIO`` / ``--target-faces N`` / ``--max-error MM`` asks for."""
+    from ..app.recipe import Recipe
+
     if target == "RATIO":
-        return {"ratio": float(ratio)}
+        return Recipe(decimate=float(ratio))
     if target == "FACES":
-        return {"ratio": float(min(1.0, max(faces, 1) / max(total_faces, 1)))}
-    return {"max_error": float(max_error)}
+        return Recipe(target_faces=int(faces))
+    return Recipe(max_error=float(max_error))
 
 
 def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int = 50000,
                         max_error: float = 1.0, progress=None) -> Dict[str, Dict]:
-    """Decimate the scan's surfaces with core, write them back, store the measured errors.
-
-    Shells that share vertices (a label map) are decimated together as one SurfaceSet; other
-    surfaces (isosurfaces) one by one. Returns ``{object name: shell measures}`` (core's keys:
-    ``faces_before``, ``faces_after``, ``hausdorff_mm``, ``mean_mm``, ``volume_change_pct``).
-    """
-    from ..app.stages import output_shells
-    from ..core.decimate.qem import decimate_mesh, decimate_surfaces
+    """Decimate the scan's surfaces as ``anatomesh mesh`` does (:func:`decimated`), write them
+    back, store the measured errors. Returns ``{object name: shell measures}`` (core's keys:
+    ``faces_before``, ``faces_after``, ``hausdorff_mm``, ``mean_mm``, ``volume_change_pct``)."""
     from ..core.model.errors import AnatomeshError
-    from ..core.model.mesh import Mesh
 
     objs = scene.surface_objects(collection)
     if not objs:
         raise AnatomeshError(f"scan '{collection.name}' has no surface objects to decimate")
-    total = sum(len(o.data.polygons) for o in objs)
-    kwargs = _core_target(target, ratio, faces, max_error, total)
-    shared = [o for o in objs if bridge.SHARED_INDEX_ATTRIBUTE in o.data.attributes]
-    alone = [o for o in objs if o not in shared]
     results: Dict[str, Dict] = {}
-    if shared:
-        ss, members = surface_set_from_objects(shared)
-        out, rep = decimate_surfaces(ss, progress=progress, **kwargs)
-        shells = {int(m.value): m for m in output_shells(out)[0]}
-        for k, o in enumerate(members):
-            m = shells[k + 1]
-            write_surface(o, m.vertices, m.faces, m.meta["vertex_ids"], out.vertices[m.meta["vertex_ids"]])
-            results[o.name] = rep["shells"][k + 1]
-    for o in alone:
-        v, f = bridge.arrays(o.data)
-        out, rep = decimate_mesh(Mesh(v, f), **kwargs)
-        write_surface(o, out.vertices, out.faces, None)
-        results[o.name] = rep["shells"][None]
-    for o in objs:
-        r = results[o.name]
-        o["anatomesh_faces_before"] = int(r["faces_before"])
-        o["anatomesh_decimation_max_error_mm"] = float(r["hausdorff_mm"])
-        o["anatomesh_decimation_mean_error_mm"] = float(r["mean_mm"])
-        o["anatomesh_decimation_volume_change_pct"] = float(r["volume_change_pct"])
+    recipe = decimation_recipe(target, ratio, faces, max_error)
+    for o, m, rest, measures in decimated(objs, recipe, progress, shown_sets(collection, objs)):
+        write_surface(o, m.vertices, m.faces, None if rest is None else m.meta["vertex_ids"], rest)
+        results[o.name] = measures
+        o["anatomesh_faces_before"] = int(measures["faces_before"])
+        o["anatomesh_decimation_max_error_mm"] = float(measures["hausdorff_mm"])
+        o["anatomesh_decimation_mean_error_mm"] = float(measures["mean_mm"])
+        o["anatomesh_decimation_volume_change_pct"] = float(measures["volume_change_pct"])
         if PREVIEW_MODIFIER in o.modifiers:
             o.modifiers.remove(o.modifiers[PREVIEW_MODIFIER])
     collection["anatomesh_decimation_max_error_mm"] = max(r["hausdorff_mm"] for r in results.values())
@@ -78,6 +61,58 @@ def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int 
     live.forget(collection.name)
     live.set_scan_settings(collection, smooth_method="NONE")
     return results
+
+
+def shown_sets(collection, objs) -> Optional[List]:
+    """The scan's layer sets at the positions its objects show, as extracted and smoothed (the
+    sets ``anatomesh mesh`` decimates), each with ``[(object, set label)]``; None when the live
+    cache does not hold them or an object was changed since (an edit tool)."""
+    scan = live.live_scan(collection)
+    if scan.shown is None:
+        return None
+    shown = scan.pinches_resolved(scan.shown)
+    names = {o.name: o for o in objs}
+    if set(shown) != set(names) or not all(
+            np.array_equal(bridge.positions(names[n].data), p) for n, p in shown.items()):
+        return None
+    return [(sset.copy_with_vertices(pos), [(names[n], label) for n, k2, _, label in scan.members if k2 == k])
+            for k, (sset, pos) in enumerate(zip(scan.layers, scan.shown))]
+
+
+def decimated(objs, recipe, progress=None, sets: Optional[List] = None):
+    """The surface objects ``objs`` decimated by :func:`anatomesh.app.stages.decimate` with the
+    run's ``recipe`` and its default cap (one voxel): ``sets`` (:func:`shown_sets`) when given,
+    else shells that share vertices (a label map) reassembled into one SurfaceSet, seams
+    shared; other surfaces (isosurfaces) one by one. Yields ``(object, Mesh, rest positions or
+    None, shell measures)``; a shared shell's mesh has ``meta["vertex_ids"]`` and its rest
+    positions are the set's (before the pinch points are moved apart)."""
+    from ..app import stages
+    from ..core.model.mesh import Mesh
+    from ..core.model.surfaceset import SurfaceSet
+
+    shared = [o for o in objs if bridge.SHARED_INDEX_ATTRIBUTE in o.data.attributes]
+    if sets is None and shared:
+        ss, members = surface_set_from_objects(shared)
+        sets = [(ss, [(o, k + 1) for k, o in enumerate(members)])]
+    for ss, members in sets or []:
+        out, rep = stages.decimate(ss, recipe, stages.one_voxel(ss), progress)
+        shells = {m.value: m for m in stages.output_shells(out)[0]}
+        for o, label in members:
+            value = ss.shell_values.get(label, label)
+            m = shells[value]
+            yield o, m, out.vertices[m.meta["vertex_ids"]], rep["shells"][stages.value_key(value)]
+    for o in objs:
+        if o not in shared:
+            one = SurfaceSet.from_meshes([Mesh(*bridge.arrays(o.data))], _affine(o))
+            out, rep = stages.decimate(one, recipe, stages.one_voxel(one))
+            (measures,) = rep["shells"].values()
+            yield o, out.shells()[0], None, measures
+
+
+def _affine(obj) -> np.ndarray:
+    """The voxel-to-mm affine the object was extracted with (identity when it has none)."""
+    aff = obj.get("anatomesh_affine")
+    return np.asarray(list(aff), np.float64).reshape(4, 4) if aff is not None and len(aff) == 16 else np.eye(4)
 
 
 def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
@@ -96,30 +131,19 @@ def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, vertex_ids, "int")
 
 
-def preview_ratios(objs, target, ratio, faces, max_error) -> Dict[str, float]:
-    """Decimate-modifier ratio of each object: the ratio, face count / all faces, or (max error)
-    each organ's faces after / before in a core run on the current shapes."""
-    if target != "ERROR":
-        total = sum(len(o.data.polygons) for o in objs)
-        r = _core_target(target, ratio, faces, max_error, total)["ratio"]
-        return {o.name: r for o in objs}
-    from ..core.decimate.qem import decimate_mesh, decimate_surfaces
-    from ..core.model.mesh import Mesh
+def preview_ratios(collection, objs, target, ratio, faces, max_error) -> Dict[str, float]:
+    """Decimate-modifier ratio of each object: its faces after / before in the run Apply makes
+    (:func:`decimated`, same settings), so the preview shows Apply's face counts."""
+    recipe = decimation_recipe(target, ratio, faces, max_error)
+    return {o.name: m["faces_after"] / max(m["faces_before"], 1)
+            for o, _, _, m in decimated(objs, recipe, sets=shown_sets(collection, objs))}
 
-    out = {}
-    shared = [o for o in objs if bridge.SHARED_INDEX_ATTRIBUTE in o.data.attributes]
-    if shared:
-        ss, members = surface_set_from_objects(shared)
-        _, rep = decimate_surfaces(ss, max_error=max_error)
-        for k, o in enumerate(members):
-            s = rep["shells"][k + 1]
-            out[o.name] = s["faces_after"] / max(s["faces_before"], 1)
-    for o in objs:
-        if o.name not in out:
-            v, f = bridge.arrays(o.data)
-            _, rep = decimate_mesh(Mesh(v, f), max_error=max_error, measure=False)
-            out[o.name] = rep["faces_after"] / max(rep["faces_before"], 1)
-    return out
+
+def uniform_ratios(objs, target, ratio, faces) -> Dict[str, float]:
+    """An instant preview while a slider moves: the ratio, or the face count / all faces, for
+    every object ("ERROR" targets need a core run: :func:`preview_ratios`)."""
+    r = ratio if target == "RATIO" else max(faces, 1) / max(sum(len(o.data.polygons) for o in objs), 1)
+    return {o.name: float(min(1.0, r)) for o in objs}
 
 
 def set_preview(objs, ratios: Dict[str, float]) -> None:

@@ -26,6 +26,7 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from ..core.decimate.qem import decimate_surfaces
 from ..core.geometry.pinches import pinch_gap_mm, separate_shells
 from ..core.geometry.topology import component_measures
 from ..core.model.errors import AnatomeshError
@@ -129,6 +130,27 @@ def smooth(surfaces: SurfaceSet, recipe: Recipe,
     return out, rep.as_dict()
 
 
+def decimation_target(recipe: Recipe, default_cap: Optional[float] = None) -> Tuple[Dict, bool]:
+    """The keyword arguments of :func:`anatomesh.core.decimate.qem.decimate_surfaces` for the
+    recipe's target (``ratio``, ``target_faces``, ``max_error``; empty: no decimation), a ratio
+    or face count capped by ``default_cap`` mm when no ``max_error`` is given; and whether that
+    cap was added."""
+    target = {k: v for k, v in (("ratio", recipe.decimate), ("target_faces", recipe.target_faces),
+                                ("max_error", recipe.max_error)) if v is not None}
+    if "target_faces" in target:
+        target["target_faces"] = int(target["target_faces"])
+    by_default = bool(target) and "max_error" not in target and default_cap is not None
+    if by_default:
+        target["max_error"] = round(default_cap, 4)
+    return target, by_default
+
+
+def one_voxel(surfaces: SurfaceSet) -> float:
+    """The default cap of decimation's error: one voxel (the largest spacing of the set's
+    affine), mm."""
+    return float(np.linalg.norm(np.asarray(surfaces.affine, np.float64)[:3, :3], axis=0).max())
+
+
 def decimate(surfaces: SurfaceSet, recipe: Recipe, default_cap: Optional[float] = None,
              progress: Optional[Progress] = None) -> Tuple[SurfaceSet, Optional[Dict]]:
     """Decimate the whole set (seams stay shared, shells closed) to the recipe's target.
@@ -138,16 +160,9 @@ def decimate(surfaces: SurfaceSet, recipe: Recipe, default_cap: Optional[float] 
     ``(surfaces, summary)``; ``summary`` is None without a target, else the target, face counts,
     the worst shell's ``hausdorff_mm``/``mean_mm``, ``seconds``, ``target_met`` or
     ``error_bound_met``, and ``shells`` keyed by the shell's value."""
-    target = {k: v for k, v in (("ratio", recipe.decimate), ("target_faces", recipe.target_faces),
-                                ("max_error", recipe.max_error)) if v is not None}
+    target, by_default = decimation_target(recipe, default_cap)
     if not target:
         return surfaces, None
-    if "target_faces" in target:
-        target["target_faces"] = int(target["target_faces"])
-    by_default = "max_error" not in target and default_cap is not None
-    if by_default:
-        target["max_error"] = round(default_cap, 4)
-    from ..core.decimate.qem import decimate_surfaces
     out, rep = decimate_surfaces(surfaces, progress=progress, **target)
     summary = {k: rep[k] for k in ("faces_before", "faces_after", "seconds") if k in rep}
     summary["target"] = {(k + "_mm" if k == "max_error" else k): v for k, v in target.items()}

@@ -84,7 +84,7 @@ class ANATOMESH_OT_decimate_preview(_TargetProps, Operator):
         if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: again when its kernels are compiled
             return {"FINISHED"}
         with ProgressReporter(context, "decimation preview"):
-            set_preview(objs, preview_ratios(objs, self.target, self.ratio, self.faces,
+            set_preview(objs, preview_ratios(coll, objs, self.target, self.ratio, self.faces,
                                                self.max_error))
         self.report({"INFO"}, f"Decimate preview on {len(objs)} surface(s) of '{coll.name}'")
         return {"FINISHED"}

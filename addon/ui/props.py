@@ -15,7 +15,7 @@ from bpy.types import PropertyGroup
 
 from .. import scene
 from ..common import active_scan
-from ..decimation import PREVIEW_MODIFIER, preview_ratios, set_preview
+from ..decimation import PREVIEW_MODIFIER, set_preview, uniform_ratios
 
 SPACE_ITEMS = (
     ("RAS", "RAS", "x toward the patient's right, y anterior, z superior (NIfTI, most Blender scenes)"),
@@ -191,7 +191,7 @@ def _preview_update(self, context):
     objs = [o for o in scene.surface_objects(coll) if PREVIEW_MODIFIER in o.modifiers]
     if objs:
         try:
-            set_preview(objs, preview_ratios(objs, self.target, self.ratio, self.faces, 0.0))
+            set_preview(objs, uniform_ratios(objs, self.target, self.ratio, self.faces))
         except Exception as exc:  # an update callback must never raise into the UI
             print(f"Anatomesh: decimate preview failed: {exc}")
 

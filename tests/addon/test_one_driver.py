@@ -69,3 +69,28 @@ def test_no_crossing_faces_after_smoothing_in_blender(addon, empty_scene):
     rep = check_parts(meshes)
     assert sum(p["self_intersections"] for p in rep["parts"]) == 0
     assert rep["intersections"] == []
+
+
+@pytest.mark.parametrize("labels, target", [(41, dict(target="RATIO", ratio=0.3)),
+                                            (61, dict(target="FACES", faces=40000))])
+def test_decimate_apply_equals_the_cli_decimation(addon, empty_scene, tmp_path, labels, target):
+    """Apply at a ratio or a face count gives the faces and vertices of ``anatomesh mesh
+    --decimate`` / ``--target-faces`` (capped at one voxel's error like the command)."""
+    from scipy.spatial import cKDTree
+
+    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    seg, table = str(shared(*MAPS[labels])), str(shared(*TABLE))
+    assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=True) == {"FINISHED"}
+    coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
+    assert bpy.ops.anatomesh.decimate_apply(collection=coll.name, **target) == {"FINISHED"}
+    flags = dict(decimate=target["ratio"]) if "ratio" in target else dict(target_faces=target["faces"])
+    app_run = importlib.import_module(addon.__name__ + ".app.run")
+    Recipe = importlib.import_module(addon.__name__ + ".app.recipe").Recipe
+    res = app_run.run(Recipe(input=seg, label_table=table, out_dir=str(tmp_path), formats=["stl"], **flags))
+    cli = {m.name: m for m in res.surfaces}
+    ui = {o.name: o for o in coll.objects}
+    assert sorted(ui) == sorted(cli)
+    faces = {n: (len(ui[n].data.polygons), cli[n].n_faces) for n in ui}
+    assert all(a == b for a, b in faces.values()), {n: f for n, f in faces.items() if f[0] != f[1]}
+    worst = max(float(cKDTree(cli[n].vertices).query(bridge.positions(ui[n].data))[0].max()) for n in ui)
+    assert worst <= 1e-3, worst
