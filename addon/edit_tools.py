@@ -1,4 +1,4 @@
-"""Edit-mode print tools on a user's own meshes (issue 18), in the spirit of Blender's 3D Print
+"""Edit-mode print tools on a user's own meshes, in the spirit of Blender's 3D Print
 Toolbox: small checks that return element indices of a ``bmesh`` (each measured by a core
 function on the mesh's triangles), and the fixes built on them.
 

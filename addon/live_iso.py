@@ -1,4 +1,4 @@
-"""Live isovalue (issue 15): dragging the isovalue re-extracts the scan's isosurface and redraws
+"""Live isovalue: dragging the isovalue re-extracts the scan's isosurface and redraws
 it in place.
 
 Every change extracts the isosurface of the cached volume (:func:`anatomesh.core.extract.isosurface.isosurface`,

@@ -1,4 +1,4 @@
-"""Preprocessing in Blender (issue 15): the Preprocess panel's settings as recipe fields, an
+"""Preprocessing in Blender: the Preprocess panel's settings as recipe fields, an
 extraction with them through the same app functions as ``anatomesh mesh``, and the isovalue
 gallery shown in the Import panel.
 

@@ -1,4 +1,4 @@
-"""The Print panel's tools (issue 18), with the command line's functions on the scene's objects:
+"""The Print panel's tools, with the command line's functions on the scene's objects:
 
 * :func:`reextract_fixed` — fuse labels / thicken thin parts in the label map before extraction
   (:func:`anatomesh.app.stages.prepare_volume`), then extract and smooth the scan again as

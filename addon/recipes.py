@@ -40,7 +40,7 @@ def recipe_from_scene(context):
     _print_to_recipe(r, getattr(context.scene, "anatomesh_print", None))
     r.out_dir = abspath(s.export_dir) or "anatomesh_out"
     r.formats = [_EXPORT_TO_CORE.get(s.export_format, "stl")]
-    pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
+    pre = getattr(context.scene, "anatomesh_preprocess", None)  # the Preprocess panel
     if pre is not None:
         preprocess_to_recipe(pre, r)
     return r
@@ -112,7 +112,7 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             p.min_wall = recipe.min_wall
         if recipe.min_gap is not None:
             p.min_gap = recipe.min_gap
-    pre = getattr(context.scene, "anatomesh_preprocess", None)  # issue 15: the Preprocess panel
+    pre = getattr(context.scene, "anatomesh_preprocess", None)  # the Preprocess panel
     if pre is not None:
         preprocess_from_recipe(pre, recipe)
     s.export_dir = recipe.out_dir
@@ -136,7 +136,7 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
         bpy.ops.anatomesh.extract()
 
 
-# -- the Preprocess panel (issue 15) ------------------------------------------------------------
+# -- the Preprocess panel ------------------------------------------------------------
 #: UI smoothing filter → recipe filter name
 SMOOTH_FILTERS = {"GAUSSIAN": "gaussian", "MEDIAN": "median", "DIFFUSION": "diffusion"}
 

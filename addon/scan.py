@@ -206,7 +206,7 @@ def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: 
         name, color = (looks or {}).get(_key(m.value), (m.name, tuple(m.color)[:3]))
         ids = shared_index(m)
         props = object_props(volume, m.value, name)
-        if len(tuple(m.color)) > 3:  # issue 15: fuzzy shells carry their opacity in an RGBA colour
+        if len(tuple(m.color)) > 3:  # fuzzy shells carry their opacity in an RGBA colour
             props["anatomesh_alpha"] = float(m.color[3])
         obj = scene.add_surface(coll, name, m.vertices, m.faces, props,
                                 color, render_method, shared_index=ids, vertex_colors=m.vertex_colors,

@@ -1,4 +1,4 @@
-"""Anatomesh add-on: the web page and distance colours from the objects in the scene (issue 16).
+"""Anatomesh add-on: the web page and distance colours from the objects in the scene.
 
 * :func:`paint_margins` colours every surface object by its distance to a target object's
   surface (within 2/5/10 mm red/yellow/green, farther the object's own colour), through core

@@ -1,4 +1,4 @@
-"""Cut to fit (issue 18), the flow's side: every part too big for the printer's build volume is cut
+"""Cut to fit, the flow's side: every part too big for the printer's build volume is cut
 into pieces that fit (:func:`anatomesh.core.printing.cut.fit_part`), named ``<part>_1``,
 ``<part>_2``, ...; each part gets one ``fit`` entry in the report's ``fixes`` (build volume, cuts,
 pieces with their extents and volumes). Used by ``anatomesh mesh --fit``, ``anatomesh check

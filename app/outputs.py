@@ -77,11 +77,11 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
              if fmt in recipe.formats}
     lods = [out_dir / f"{stem}_lod{i}.glb" for i in range(recipe.lod if recipe.lod > 1 else 0)]
     p = Plan(per_surface, scene, lods, report_path, report_path.parent / RECIPE_FILE, stem)
-    if WEB_FORMAT in recipe.formats:  # issue 16: the page's folder
+    if WEB_FORMAT in recipe.formats:  # the page's folder
         from .web import page_paths
 
         p.extra += page_paths(web_dir(recipe), recipe.web_levels)
-    if DICOM_FORMAT in recipe.formats:  # segmentations (issue 14): the study the objects join
+    if DICOM_FORMAT in recipe.formats:  # segmentations: the study the objects join
         from ..core.export.dicom_stl import dicom_reference
 
         p.dicom_reference = dicom_reference(volume)
@@ -154,7 +154,7 @@ def write_lods(surfaces: SurfaceSet, recipe: Recipe, p: Plan,
     return out
 
 
-# --- the web page (issue 16) ----------------------------------------------------------------------
+# --- the web page ----------------------------------------------------------------------
 def web_dir(recipe: Recipe) -> Path:
     """The folder of the "web" output: ``<out>/web`` (open ``index.html`` there)."""
     return Path(recipe.out_dir) / "web"

@@ -13,7 +13,7 @@ from ..core.model.progress import Progress, report
 from ..core.printing.connectors import add_connectors
 from ..core.printing.hollow import hollow
 from ..core.printing.profiles import resolve_profile
-from .fit import fit_parts  # issue 18: cut to fit
+from .fit import fit_parts  # cut to fit
 
 
 def apply_tools(meshes: List[Mesh], recipe, progress: Optional[Progress] = None) -> Tuple[List[Mesh], List[Dict]]:
@@ -28,18 +28,18 @@ def apply_tools(meshes: List[Mesh], recipe, progress: Optional[Progress] = None)
                                                       min_wall=prof["min_wall"])
         fixes.append({"fix": "connectors", **info})
     if recipe.hollow is None:
-        return _fit(meshes, fixes, recipe, progress)  # issue 18: cut to fit
+        return _fit(meshes, fixes, recipe, progress)  # cut to fit
     out = []
     for k, m in enumerate(meshes):
         report(progress, k / max(len(meshes), 1), f"hollowing {m.name}")
         hm, info = hollow_part(m, recipe.hollow, recipe.drain_holes, recipe.drain_diameter, recipe.profile)
         out.append(hm)
         fixes.append({"fix": "hollow", "part": m.name, **info})
-    return _fit(out, fixes, recipe, progress)  # issue 18: cut to fit
+    return _fit(out, fixes, recipe, progress)  # cut to fit
 
 
 def _fit(meshes: List[Mesh], fixes: List[Dict], recipe, progress) -> Tuple[List[Mesh], List[Dict]]:
-    """Issue 18: the parts cut to fit the recipe's build volume ``fit`` (when set), last."""
+    """The parts cut to fit the recipe's build volume ``fit`` (when set), last."""
     if not recipe.fit:
         return meshes, fixes
     meshes, more = fit_parts(meshes, recipe.fit, recipe.fit_connectors, recipe.profile, recipe.min_wall, progress)

@@ -42,22 +42,22 @@ from typing import Dict, List, Optional, Union
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
-from .preprocess_settings import KEYS as PREPROCESS_KEYS, check_preprocess  # preprocessing (issue 15)
-from .fit import check_fit  # issue 18: cut to fit
+from .preprocess_settings import KEYS as PREPROCESS_KEYS, check_preprocess  # preprocessing
+from .fit import check_fit  # cut to fit
 
 SMOOTH_NONE = "none"
 SMOOTH_DEFAULT = "organ"  # the smoothing driver's default: Taubin in the voxel cell, volumes kept
 #: per-surface formats, whole-scene formats, and the ones that need Blender (bpy)
 SURFACE_FORMATS = ("stl", "ply", "obj", "3mf", "dicom")
 SCENE_ONLY_FORMATS = ("glb", "blend", "png")
-#: the web page (issue 16): a folder (index.html + scripts), not one file
+#: the web page: a folder (index.html + scripts), not one file
 WEB_FORMAT = "web"
 FORMATS = SURFACE_FORMATS + SCENE_ONLY_FORMATS + (WEB_FORMAT,)
 BLENDER_FORMATS = ("blend", "png")
 STAIRCASE = ("auto", "on", "off")
 PROFILES = tuple(PRINTER_PROFILES)
 RECIPE_FILE = "recipe.toml"
-# segmentations (issue 14): DICOM write-back, RT contour methods
+# segmentations: DICOM write-back, RT contour methods
 DICOM_FORMAT = "dicom"
 CONTOURS_RASTER, CONTOURS_TILE = "raster", "tile"
 CONTOURS = (CONTOURS_RASTER, CONTOURS_TILE)
@@ -137,12 +137,12 @@ class Recipe:
     fuse: List[List[Union[int, str]]] = field(default_factory=list)
     thicken: bool = False
     clearance: Optional[float] = None
-    # printable-part tools (issue 18): hollow to this wall (mm) with drain holes
+    # printable-part tools: hollow to this wall (mm) with drain holes
     hollow: Optional[float] = None
     drain_holes: int = 2
     drain_diameter: Optional[float] = None
     connectors: List[List[Union[int, str]]] = field(default_factory=list)
-    # issue 18: cut to fit the build volume [x, y, z] mm, pins across the cuts
+    # cut to fit the build volume [x, y, z] mm, pins across the cuts
     fit: Optional[List[float]] = None
     fit_connectors: bool = False
     formats: List[str] = field(default_factory=lambda: ["stl"])
@@ -151,14 +151,14 @@ class Recipe:
     lod: int = 0
     report: Optional[str] = None
     overwrite: bool = False
-    # distance colouring and the web page (issue 16)
+    # distance colouring and the web page
     distance_to: Optional[Union[int, str]] = None
     margins: List[float] = field(default_factory=lambda: [2.0, 5.0, 10.0])
     web_levels: int = 2
-    # segmentations (issue 14)
+    # segmentations
     grid: Optional[str] = None
     contours: str = CONTOURS_RASTER
-    # -- preprocessing before and around extraction (issue 15; see app/preprocess_settings.py) --
+    # -- preprocessing before and around extraction (see app/preprocess_settings.py) --
     resample: Optional[List[float]] = None
     resample_method: str = "linear"
     roi: Optional[List[float]] = None
@@ -214,19 +214,19 @@ def check_recipe(recipe: Recipe) -> None:
         value = getattr(recipe, name)
         if value is not None and not value > 0:
             raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
-    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):  # issue 18
+    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):
         raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
-    recipe.fit = check_fit(recipe.fit)  # issue 18: cut to fit
+    recipe.fit = check_fit(recipe.fit)  # cut to fit
     if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
         raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
-    # distance colouring and the web page (issue 16)
+    # distance colouring and the web page
     from ..core.geometry.margins import check_margins  # speed: numba's kernels load on use
 
     recipe.margins = list(check_margins(recipe.margins))
     if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
         raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "
                              f"got {recipe.web_levels!r}")
-    check_preprocess(recipe)  # preprocessing (issue 15)
+    check_preprocess(recipe)  # preprocessing
 
 
 #: TOML section → {TOML key: Recipe field}
@@ -234,7 +234,7 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "input": {"path": "input", "series": "series", "volume": "volume_index",
               "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space",
               "grid": "grid", "contours": "contours"},
-    "preprocess": {k: k for k in PREPROCESS_KEYS},  # issue 15
+    "preprocess": {k: k for k in PREPROCESS_KEYS},
     "surfaces": {"cap": "cap", "keep_largest": "keep_largest", "min_component_mm3": "min_component_mm3"},
     "smoothing": {"method": "smooth", "iterations": "iterations", "lambda": "lam", "mu": "mu",
                   "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
@@ -247,9 +247,9 @@ SECTIONS: Dict[str, Dict[str, str]] = {
     "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
                "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
 }
-# issue 18: cut to fit
+# cut to fit
 SECTIONS["check"].update(fit_mm="fit", fit_connectors="fit_connectors")
-# distance colouring and the web page (issue 16)
+# distance colouring and the web page
 SECTIONS["distance"] = {"to": "distance_to", "margins_mm": "margins"}
 SECTIONS["web"] = {"levels": "web_levels"}
 #: a comment written above each section
@@ -324,7 +324,7 @@ _TYPES = {
     "lod": (lambda v: _is_int(v), "a whole number (GLB levels of detail, 0: none)"),
     "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
                     "[width, height] in pixels"),
-    # preprocessing (issue 15)
+    # preprocessing
     "resample": (lambda v: _is_number(v) or (isinstance(v, list) and len(v) in (1, 3) and all(_is_number(x) for x in v)),
                  "a voxel size in mm or [x, y, z]"),
     "resample_method": (lambda v: isinstance(v, str), "\"linear\", \"cubic\" or \"lanczos\""),
@@ -340,11 +340,11 @@ _TYPES = {
     "precise": (lambda v: isinstance(v, bool), "true or false"),
     "difference_colors": (lambda v: isinstance(v, bool), "true or false"),
 }
-# issue 18: cut to fit
+# cut to fit
 _TYPES["fit"] = (lambda v: isinstance(v, list) and len(v) == 3 and all(_is_number(x) for x in v),
                  "the build volume [x, y, z] in mm")
 _TYPES["fit_connectors"] = (lambda v: isinstance(v, bool), "true or false")
-# distance colouring and the web page (issue 16)
+# distance colouring and the web page
 _TYPES["distance_to"] = (lambda v: isinstance(v, str) or _is_int(v), "a label name or value")
 _TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
                      "a list of distances in mm, e.g. [2, 5, 10]")

@@ -50,7 +50,7 @@ def build_report(result: "Result") -> Dict:
                         for m, size, extra, files in zip(result.surfaces, sizes, result.cleaning,
                                                          p.surfaces)]}
     out["files"].update(report=relative(p.report, base), recipe=relative(p.recipe, base))
-    if "layers" in facts:  # segmentations (issue 14): overlapping structures, one layer each
+    if "layers" in facts:  # segmentations: overlapping structures, one layer each
         out["layers"], out["overlaps"] = facts["layers"], facts["overlaps"]
     out["notes"] = list(facts["meta"].get("notes") or [])
     if p.dicom_reference and p.dicom_reference.get("note"):
@@ -60,7 +60,7 @@ def build_report(result: "Result") -> Dict:
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)
-    for key in ("distance", "web", "preprocess"):  # issues 16, 15
+    for key in ("distance", "web", "preprocess"):
         if getattr(result, key, None):
             out[key] = getattr(result, key)
     out["warnings"] = list(result.warnings)

@@ -49,9 +49,9 @@ class Result:
     lod: List[Dict] = field(default_factory=list)
     print_check: Optional[Dict] = None
     warnings: List[str] = field(default_factory=list)
-    distance: Optional[Dict] = None   # distance colouring summary (issue 16)
-    web: Optional[Dict] = None        # the web page's summary (issue 16)
-    preprocess: Optional[Dict] = None  # issue 15: steps, parameters, measured effects
+    distance: Optional[Dict] = None   # distance colouring summary
+    web: Optional[Dict] = None        # the web page's summary
+    preprocess: Optional[Dict] = None  # steps, parameters, measured effects
     input_facts: Optional[Dict] = None  # the input's facts for the report (describe, no histogram)
     surface_sizes: Optional[List] = None  # per surface (topology, area, volume): report.surface_sizes
     pinch_points: Optional[Dict] = None  # pinch points resolved in the shells (stages.output_shells)
@@ -83,7 +83,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     volume = load(recipe.input, series=recipe.series, volume_index=recipe.volume_index,
                   labels=recipe.label_table, space=recipe.space, grid=recipe.grid,
                   progress=clock.sub(0.1))
-    clock.start("preprocess", 0.1, "preprocessing")  # issue 15
+    clock.start("preprocess", 0.1, "preprocessing")
     volume, pre = _preprocessed(volume, recipe, clock.sub(0.2))
     res = Result(volume, recipe)
     clock.start("facts", 0.2, "describing the input")
@@ -100,7 +100,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
         outputs.write_surfaces(res.surfaces, res.plan, res.plan.stem, clock.sub(0.8))
     res.surface_sizes = sizes.result()
     res.lod = outputs.write_lods(res.surface_set, recipe, res.plan, clock.sub(0.85))
-    res.web = outputs.write_web(res, clock.sub(0.85))  # issue 16
+    res.web = outputs.write_web(res, clock.sub(0.85))
     if blender is not None:
         clock.start("blender", 0.85, "building the Blender scene")
         blender(res, res.plan.scene.get("blend"), render_png=res.plan.scene.get("png"),
@@ -128,7 +128,7 @@ def _finish_surfaces(res: Result, pre, clock: "_Clock") -> List[str]:
     when the recipe asks.
     Fills ``res``; returns the preprocessing's warnings."""
     recipe = res.recipe
-    if recipe.connectors or recipe.hollow is not None or recipe.fit:  # issue 18: print tools, cut to fit
+    if recipe.connectors or recipe.hollow is not None or recipe.fit:  # print tools, cut to fit
         from .fit import rows_for_pieces
         from .printtools import apply_tools
 
@@ -136,11 +136,11 @@ def _finish_surfaces(res: Result, pre, clock: "_Clock") -> List[str]:
         res.fixes += tools
         res.cleaning = rows_for_pieces(res.cleaning, res.surfaces)
     warnings: List[str] = []
-    if pre is not None or recipe.difference_colors:  # issue 15
+    if pre is not None or recipe.difference_colors:
         from .preprocess import finish
 
         res.preprocess, warnings = finish(res.surfaces, pre, recipe, clock.sub(0.7))
-    res.distance = stages.distance_colors(res.surfaces, recipe)  # issue 16
+    res.distance = stages.distance_colors(res.surfaces, recipe)
     return warnings
 
 

@@ -36,7 +36,7 @@ from ..core.model.progress import Progress
 from ..core.model.segmentation import Segmentation, as_layers
 from ..core.model.surfaceset import SurfaceSet
 from ..core.model.volume import Volume
-from ..core.printing.profiles import resolve_profile
+from ..core.printing.profiles import PROFILES as PRINTER_PROFILES, resolve_profile
 from .recipe import CONTOURS_TILE, SMOOTH_NONE, Recipe
 
 # speed: each stage imports its room when it runs, so a command loads only what it uses
@@ -192,7 +192,13 @@ def shells(surfaces: SurfaceSet, recipe: Recipe) -> Tuple[List[Mesh], List[Dict]
         pinches = separate_shells(surfaces, meshes, pinch_gap_mm(surfaces.affine))
     else:
         meshes, pinches = output_shells(surfaces)
-    return meshes, [clean(m, recipe) for m in meshes], fix, pinches
+    voxel = voxel_volume(surfaces)
+    return meshes, [clean(m, recipe, voxel) for m in meshes], fix, pinches
+
+
+def voxel_volume(surfaces: SurfaceSet) -> float:
+    """The volume of one voxel of the set's grid, mm³."""
+    return float(abs(np.linalg.det(np.asarray(surfaces.affine, np.float64)[:3, :3])))
 
 
 def output_shells(surfaces: SurfaceSet) -> Tuple[List[Mesh], Dict]:
@@ -204,23 +210,40 @@ def output_shells(surfaces: SurfaceSet) -> Tuple[List[Mesh], Dict]:
     return meshes, separate_shells(surfaces, meshes, pinch_gap_mm(surfaces.affine))
 
 
-def clean(m: Mesh, recipe: Recipe) -> Dict:
-    """Apply keep-largest / min-component to ``m`` in place; returns what was dropped."""
-    dropped = []
-    if m.n_faces and (recipe.keep_largest or recipe.min_component_mm3 > 0):
-        keep = []
-        for i, c in enumerate(component_measures(m.vertices, m.faces)):
-            if (recipe.keep_largest and i > 0) or abs(c["volume_mm3"]) < recipe.min_component_mm3:
-                dropped.append({"volume_mm3": round(c["volume_mm3"], 3), "area_mm2": round(c["area_mm2"], 3),
-                                "faces": int(len(c["faces"]))})
-            else:
-                keep.append(c["faces"])
-        if dropped:
-            faces = m.faces[np.sort(np.concatenate(keep))] if keep else m.faces[:0]
-            m.vertices, m.faces, m.normals, used = compact(m.vertices, faces, m.normals)
-            if m.meta.get("vertex_ids") is not None:  # index into the SurfaceSet stays valid
-                m.meta["vertex_ids"] = np.asarray(m.meta["vertex_ids"])[used]
-    return {"dropped_components": dropped}
+#: components enclosing less than this fraction of one voxel are specks, dropped by default (an
+#: isosurface's blob around one voxel barely above the level; a label map's components keep at
+#: least 0.9 voxel through smoothing)
+SPECK_VOXELS = 0.1
+#: kept components smaller than this are listed in the report (``small_components_mm3``): the
+#: loose shells a print check reports (the largest profile's smallest shell worth printing)
+SMALL_COMPONENT_MM3 = max(p["min_shell_mm3"] for p in PRINTER_PROFILES.values())
+
+
+def clean(m: Mesh, recipe: Recipe, voxel_mm3: float = 0.0) -> Dict:
+    """Drop from ``m`` (in place) its specks (components under :data:`SPECK_VOXELS` of
+    ``voxel_mm3``) and what keep-largest / min-component ask; returns the report's entries:
+    ``dropped_components`` (volume, area, faces, why) and ``small_components_mm3`` (the kept
+    components under :data:`SMALL_COMPONENT_MM3`, mm³)."""
+    dropped, small = [], []
+    if not m.n_faces:
+        return {"dropped_components": dropped, "small_components_mm3": small}
+    keep = []
+    for i, c in enumerate(component_measures(m.vertices, m.faces)):
+        size = abs(c["volume_mm3"])
+        why = ("speck" if size < SPECK_VOXELS * voxel_mm3 else "keep_largest" if recipe.keep_largest and i > 0
+               else "min_component" if size < recipe.min_component_mm3 else None)
+        if why:
+            dropped.append({"volume_mm3": round(c["volume_mm3"], 6), "area_mm2": round(c["area_mm2"], 3),
+                            "faces": int(len(c["faces"])), "why": why})
+        else:
+            keep.append(c["faces"])
+            small += [round(size, 4)] if size < SMALL_COMPONENT_MM3 else []
+    if dropped:
+        faces = m.faces[np.sort(np.concatenate(keep))] if keep else m.faces[:0]
+        m.vertices, m.faces, m.normals, used = compact(m.vertices, faces, m.normals)
+        if m.meta.get("vertex_ids") is not None:  # index into the SurfaceSet stays valid
+            m.meta["vertex_ids"] = np.asarray(m.meta["vertex_ids"])[used]
+    return {"dropped_components": dropped, "small_components_mm3": small}
 
 
 def value_key(value) -> str:
@@ -231,7 +254,7 @@ def value_key(value) -> str:
     return str(int(v)) if v.is_integer() else str(v)
 
 
-# --- distance colouring (issue 16) ---------------------------------------------------------------
+# --- distance colouring ---------------------------------------------------------------
 def distance_colors(meshes: List[Mesh], recipe: Recipe) -> Optional[Dict]:
     """Colour ``meshes`` in place by their distance to ``recipe.distance_to`` (a name or value)
     within ``recipe.margins`` mm (:func:`anatomesh.core.geometry.margins.color_by_distance`);
@@ -244,7 +267,7 @@ def distance_colors(meshes: List[Mesh], recipe: Recipe) -> Optional[Dict]:
     return summary
 
 
-# -- segmentations with overlapping structures (issue 14: masks, DICOM SEG, RTSTRUCT) -----------
+# -- segmentations with overlapping structures (masks, DICOM SEG, RTSTRUCT) -----------------------
 def layers_of(volume: Union[Volume, Segmentation], recipe: Recipe) -> List[Tuple[Volume, Recipe]]:
     """The label-map layers to run the stages on, each with the recipe restricted to the
     structures it holds (``recipe.labels`` resolved against every layer's names). A Volume is

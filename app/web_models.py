@@ -23,7 +23,7 @@ from ..core.model.errors import AnatomeshError
 from ..core.model.mesh import Mesh
 from ..core.model.progress import Progress, report, sub
 from ..core.model.surfaceset import SurfaceSet
-from .stages import clean, output_shells
+from .stages import clean, output_shells, voxel_volume
 from .web import WebModel
 
 #: how many times fewer faces each coarser level has
@@ -88,7 +88,8 @@ def model_of_run(result, progress: Optional[Progress] = None) -> WebModel:
     coarser levels from its surface set."""
     recipe = result.recipe
     levels = set_levels(result.surface_set, result.surfaces, recipe.web_levels,
-                        clean=lambda m: clean(m, recipe), progress=progress)
+                        clean=lambda m: clean(m, recipe, voxel_volume(result.surface_set)),
+                        progress=progress)
     d = result.distance
     if d:  # the final surfaces are coloured already (stages.distance_colors)
         surface = result.surfaces[find_target(result.surfaces, d["target"])]

@@ -1,5 +1,5 @@
-"""Benchmark: the first run after install, with a cold numba cache (issue 13: "the first
-extraction after install is usable within 10 s on the sample").
+"""Benchmark: the first run after install, with a cold numba cache (target: the first
+extraction after install is usable within 10 s on the sample).
 
 1. Blender (the ``bpy`` module, the add-on enabled, a fresh numba cache): the background warm-up
    starts (what enabling the extension does), the sample's 41-label map is imported at once with

@@ -6,7 +6,7 @@ changes it (``collection.anatomesh.smooth_strength = x``): the property's update
 the cached unsmoothed surfaces with the command line's driver (``organ``: filter in the voxel
 cells, staircase pass, fold guard, volume step, untangling) and writes the positions into the
 objects. The time is from the assignment to its return, best of ``--repeat`` new strengths after
-one warm-up change. Targets (issue 13): 61-label TotalSegmentator map <= 150 ms; the chest CT's
+one warm-up change. Targets: 61-label TotalSegmentator map <= 150 ms; the chest CT's
 300 HU (bone) isosurface, ~1M triangles, <= 500 ms.
 
 Run: ``python benchmarks/bench_live.py [--repeat 8] [--cases labels61,bone]`` (needs the bpy

@@ -1,4 +1,4 @@
-"""Benchmark: preprocessing (issue 15) on the real chest CT (512x512x141 int16, 0.977x0.977x2 mm).
+"""Benchmark: preprocessing on the real chest CT (512x512x141 int16, 0.977x0.977x2 mm).
 
 * **Resampling** to 1 mm isotropic (512x512x141 → 500x500x282): ours (linear, cubic B-spline,
   Lanczos-3; 2 numba threads, slabs of 256 MB) against ``scipy.ndimage.zoom`` (order 1 and 3, one

@@ -9,8 +9,8 @@ Errors caused by the input (a bad file, a missing label) are reported as ``ERROR
 operator returns ``{'CANCELLED'}``; no exception escapes into Blender.
 """
 from . import decimate, export, paint, printing, recipe, scan, smooth, view
-from . import web  # issue 16
-from . import preprocess  # issue 15
+from . import web
+from . import preprocess
 
 CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOMESH_OT_labels_select,
            scan.ANATOMESH_OT_level_add, scan.ANATOMESH_OT_level_remove, smooth.ANATOMESH_OT_smooth,
@@ -18,14 +18,14 @@ CLASSES = (scan.ANATOMESH_OT_import_scan, scan.ANATOMESH_OT_extract, scan.ANATOM
            decimate.ANATOMESH_OT_decimate_apply, printing.ANATOMESH_OT_print_check,
            printing.ANATOMESH_OT_print_select_problem, export.ANATOMESH_OT_export,
            recipe.ANATOMESH_OT_recipe_save, recipe.ANATOMESH_OT_recipe_load, view.ANATOMESH_OT_frame_camera)
-# the web page and distance colours (issue 16)
+# the web page and distance colours
 CLASSES += (web.ANATOMESH_OT_export_web, web.ANATOMESH_OT_paint_margins)
-CLASSES = CLASSES + preprocess.CLASSES  # issue 15
-from . import fit  # issue 18: cut to fit
+CLASSES = CLASSES + preprocess.CLASSES
+from . import fit  # cut to fit
 CLASSES = CLASSES + (fit.ANATOMESH_OT_print_fit,)
-# issue 18: print tools
+# print tools
 from . import print_tools  # noqa: E402
 CLASSES = CLASSES + print_tools.CLASSES
-# issue 18: edit-mode tools
+# edit-mode tools
 from . import edit_tools  # noqa: E402
 CLASSES = CLASSES + edit_tools.CLASSES

@@ -1,4 +1,4 @@
-"""Anatomesh add-on: Edit Mode print tools (issue 18) on the edited mesh (:mod:`anatomesh.addon.edit_tools`).
+"""Anatomesh add-on: Edit Mode print tools on the edited mesh (:mod:`anatomesh.addon.edit_tools`).
 
 * ``anatomesh.edit_select_problem`` — select the non-manifold edges, boundary edges,
   self-intersecting faces or thin faces (thinner than the Print panel's minimum wall);

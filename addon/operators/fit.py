@@ -1,4 +1,4 @@
-"""Cut to Fit (issue 18): the Print panel's button. Every Anatomesh surface (or the selected ones)
+"""Cut to Fit: the Print panel's button. Every Anatomesh surface (or the selected ones)
 too big for the printer's build volume is cut into closed pieces that fit
 (:func:`anatomesh.app.fit.fit_parts`, the same function as ``anatomesh mesh --fit``), optionally
 with pins and pockets across the cuts. The pieces ``<part>_1``, ``<part>_2``, ... join the part's

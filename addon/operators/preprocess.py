@@ -1,4 +1,4 @@
-"""Preprocessing operators (issue 15): extract with the Preprocess panel's settings, show the
+"""Preprocessing operators: extract with the Preprocess panel's settings, show the
 isovalue gallery, start the live isovalue."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Anatomesh add-on: the Print panel's tools (issue 18), the command line's print fixes as buttons.
+"""Anatomesh add-on: the Print panel's tools, the command line's print fixes as buttons.
 
 * ``anatomesh.print_fuse`` — the selected surfaces (or ``labels``) become one solid: the labels are
   merged in the label map and the scan is extracted and smoothed again (``anatomesh mesh --fuse``);

@@ -1,4 +1,4 @@
-"""Web operators (issue 16): the self-contained 3D page of the surfaces, and distance colours."""
+"""Web operators: the self-contained 3D page of the surfaces, and distance colours."""
 from __future__ import annotations
 
 import os

@@ -40,7 +40,7 @@ class ANATOMESH_PT_import(_Base, Panel):
         col.prop(s, "filepath", text="")
         col.prop(s, "label_table", text="Labels")
         col.prop(s, "series")
-        col.prop(s, "grid")  # segmentations (issue 14)
+        col.prop(s, "grid")  # segmentations
         col.prop(s, "space")
         row = self.layout.row(align=True)
         op = row.operator("anatomesh.import_scan", text="Read", icon="FILE_FOLDER")
@@ -49,7 +49,7 @@ class ANATOMESH_PT_import(_Base, Panel):
         op.extract = False
         if s.info:
             self.layout.label(text=s.info, icon="INFO")
-        _draw_gallery(self, context)  # issue 15
+        _draw_gallery(self, context)
 
 
 class ANATOMESH_PT_labels(_Base, Panel):
@@ -140,7 +140,7 @@ class ANATOMESH_PT_look(_Base, Panel):
             box.label(text=obj.name, icon="OBJECT_DATA")
             box.prop(obj, '["anatomesh_alpha"]', text="Opacity", slider=True)
             box.prop(obj, "color", text="Viewport colour")
-            # distance colours (issue 16): every surface by its distance to this one
+            # distance colours: every surface by its distance to this one
             box.operator("anatomesh.paint_margins", icon="DRIVER_DISTANCE").target = obj.name
         layout.operator("anatomesh.frame_camera", icon="CAMERA_DATA").collection = coll.name
 
@@ -160,7 +160,7 @@ class ANATOMESH_PT_export(_Base, Panel):
         op.directory, op.format, op.selection = s.export_dir, s.export_format, s.export_selection
         coll = active_scan(context)
         op.collection = coll.name if coll is not None else ""
-        # the web page (issue 16)
+        # the web page
         web = self.layout.operator("anatomesh.export_web", text="Export Web", icon="WORLD")
         web.directory, web.selection = s.export_dir, s.export_selection
         web.collection = coll.name if coll is not None else ""
@@ -254,7 +254,7 @@ class ANATOMESH_PT_print(_Base, Panel):
         op.min_wall = s.min_wall
         op = row.operator("anatomesh.paint", text="Gaps", icon="MOD_LENGTH")
         op.mode = "GAP"
-        # issue 18: cut to fit
+        # cut to fit
         fit = context.scene.anatomesh_fit
         col = self.layout.column(align=True)
         col.prop(fit, "size", text="")
@@ -288,7 +288,7 @@ def _fill_decimate(op, s, coll):
 
 
 # ---------------------------------------------------------------------------------------------
-# preprocessing before and around extraction (issue 15)
+# preprocessing before and around extraction
 # ---------------------------------------------------------------------------------------------
 class ANATOMESH_PT_preprocess(_Base, Panel):
     bl_label = "Preprocess"
@@ -337,7 +337,7 @@ class ANATOMESH_PT_preprocess(_Base, Panel):
 
 
 def _draw_gallery(self, context):
-    """Import panel addition (issue 15): the isovalue gallery button and the picture."""
+    """Import panel addition: the isovalue gallery button and the picture."""
     from .. import preprocessing
 
     if context.scene.anatomesh.kind != "LEVELS":
@@ -353,7 +353,7 @@ CLASSES = tuple(c for k in CLASSES for c in ((k, ANATOMESH_PT_preprocess) if k i
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 18: print tools (a sub-panel of Print)
+# print tools (a sub-panel of Print)
 # ---------------------------------------------------------------------------------------------
 class ANATOMESH_PT_print_tools(_Base, Panel):
     bl_label = "Print Tools"
@@ -379,7 +379,7 @@ class ANATOMESH_PT_print_tools(_Base, Panel):
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 18: edit-mode tools (a sub-panel of Print, shown in Edit Mode)
+# edit-mode tools (a sub-panel of Print, shown in Edit Mode)
 # ---------------------------------------------------------------------------------------------
 class ANATOMESH_PT_edit_tools(_Base, Panel):
     bl_label = "Edit Mode"

@@ -130,7 +130,7 @@ class ANATOMESH_PG_settings(PropertyGroup):
                                             "colour table, ITK-SNAP); a sidecar is found automatically")
     space: EnumProperty(name="Space", items=SPACE_ITEMS, default="RAS",
                         description="Patient coordinate system of the vertex coordinates")
-    # segmentations (issue 14): mask folders, DICOM SEG, RTSTRUCT
+    # segmentations: mask folders, DICOM SEG, RTSTRUCT
     grid: StringProperty(name="Grid", description="Mask folders: the grid to mesh on (a mask name or "
                                                   "'image'; empty: the finest). DICOM SEG/RTSTRUCT: "
                                                   "'image' or 'native'")
@@ -263,7 +263,7 @@ def unregister_properties() -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# preprocessing before and around extraction (issue 15): Scene.anatomesh_preprocess
+# preprocessing before and around extraction: Scene.anatomesh_preprocess
 # ---------------------------------------------------------------------------------------------
 def _live_level_update(self, context):
     from .. import live_iso
@@ -318,7 +318,7 @@ _POINTERS = _POINTERS + (("Scene", "anatomesh_preprocess", ANATOMESH_PG_preproce
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 18: cut to fit: Scene.anatomesh_fit (the Print panel's Cut to Fit settings)
+# cut to fit: Scene.anatomesh_fit (the Print panel's Cut to Fit settings)
 # ---------------------------------------------------------------------------------------------
 class ANATOMESH_PG_fit(PropertyGroup):
     """The printer's build volume and whether pins go across the cuts."""
@@ -333,7 +333,7 @@ _POINTERS = _POINTERS + (("Scene", "anatomesh_fit", ANATOMESH_PG_fit),)
 
 
 # ---------------------------------------------------------------------------------------------
-# issue 18: print tools / edit-mode tools: Scene.anatomesh_print_tools
+# print tools / edit-mode tools: Scene.anatomesh_print_tools
 # ---------------------------------------------------------------------------------------------
 from ..edit_tools import PROBLEM_ITEMS  # noqa: E402
 

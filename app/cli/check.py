@@ -17,7 +17,7 @@ from typing import Dict, List
 from ...core.model.errors import AnatomeshError
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
 from .mesh import fit_args, hollow_args
-from ..fit import fit_arg, summary as fit_summary  # issue 18: cut to fit
+from ..fit import fit_arg, summary as fit_summary  # cut to fit
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
@@ -40,8 +40,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
     p.add_argument("--separate", type=float, metavar="MM",
                    help="fix: pull touching parts apart by this clearance (each side of a shared "
                         "interface moves back by half); needs --out")
-    hollow_args(p)  # issue 18: print tools
-    fit_args(p)  # issue 18: cut to fit
+    hollow_args(p)  # print tools
+    fit_args(p)  # cut to fit
     p.add_argument("--out", metavar="DIR", help="write the fixed parts here as STL and all in one "
                                                 "parts.3mf (with a fix or tool option)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
@@ -60,7 +60,7 @@ def cmd_check(args) -> int:
     if args.out and not fixing:
         raise AnatomeshError("--out is for fixed files: add --remove-tiny MM3, --close-holes EDGES, "
                              "--separate MM, --hollow WALL_MM and/or --fit X,Y,Z")
-    fit = None if args.fit is None else fit_arg(args.fit)  # issue 18: bad sizes exit 2 early
+    fit = None if args.fit is None else fit_arg(args.fit)  # bad sizes exit 2 early
     prof = resolve_profile(args.profile, args.min_wall, args.min_gap)  # bad numbers: exit 2 early
     meshes = read_parts(args.path)
     fixes = []
@@ -75,7 +75,7 @@ def cmd_check(args) -> int:
     if args.report:
         write_json(rep, args.report)
     for f in fixes:
-        if "file" in f:  # the per-part fit entries (issue 18) have their own line
+        if "file" in f:  # the per-part fit entries have their own line
             print(f"fixed {f['name']}: {f['summary']} -> {f['file']}")
         else:
             print(f"fit {fit_summary(f)}")
@@ -87,13 +87,13 @@ def cmd_check(args) -> int:
 
 
 def _write_fixed(meshes, args, fit=None):
-    """Fix the parts (and cut them to ``fit`` the build volume, issue 18); write each as STL and
+    """Fix the parts (and cut them to ``fit`` the build volume); write each as STL and
     all in ``parts.3mf`` into ``args.out``."""
     from ...core.export.common import refuse_overwrite, unique_stems
     from ...core.export.mesh_files import write_stl
     from ...core.export.threemf import write_3mf
     from ..check import fix_parts
-    from ..fit import PART_INDEX, fit_parts  # issue 18
+    from ..fit import PART_INDEX, fit_parts
     from ..printtools import hollow_part
 
     out = Path(args.out)
@@ -101,7 +101,7 @@ def _write_fixed(meshes, args, fit=None):
     combined = out / "parts.3mf"
     refuse_overwrite(plans + [combined], args.overwrite, "pass --overwrite or choose another --out folder")
     fixed, log = fix_parts(meshes, args.remove_tiny, args.close_holes, args.separate)
-    if args.hollow is not None:  # issue 18: print tools
+    if args.hollow is not None:  # print tools
         for k, m in enumerate(fixed):
             fixed[k], info = hollow_part(m, args.hollow, 2 if args.drain_holes is None else args.drain_holes,
                                          args.drain_diameter, args.profile)
@@ -109,7 +109,7 @@ def _write_fixed(meshes, args, fit=None):
                                                       _hollow_text(info)) if x)
             log[k]["hollow"] = info
     fit_entries = []
-    if fit is not None:  # issue 18: cut to fit; one file per piece
+    if fit is not None:  # cut to fit; one file per piece
         parts = [m.name for m in fixed]
         fixed, fit_entries = fit_parts(fixed, fit, bool(args.fit_connectors), args.profile, args.min_wall)
         log = [_piece_log(log[m.meta[PART_INDEX]], parts[m.meta[PART_INDEX]], m.name) for m in fixed]
@@ -123,7 +123,7 @@ def _write_fixed(meshes, args, fit=None):
 
 
 def _piece_log(entry: Dict, part: str, name: str) -> Dict:
-    """Issue 18: a piece's log entry, from its part's."""
+    """A piece's log entry, from its part's."""
     if name == part:
         return dict(entry)
     text = "; ".join(x for x in (entry["summary"].replace("nothing to fix", ""), f"cut from {part} to fit") if x)

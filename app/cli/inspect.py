@@ -15,20 +15,20 @@ import numpy as np
 from ...core.io import load
 from ...core.io.describe import describe
 from .common import EXIT_OK, TerminalProgress, add_input_args, path_arg
-from .inspect_extras import add_extra_args, extras  # issue 15: --histogram PNG, hints
+from .inspect_extras import add_extra_args, extras  # --histogram PNG, hints
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
     p = subs.add_parser("inspect", help="describe a scan or label map before meshing")
     add_input_args(p)
     p.add_argument("--json", action="store_true", help="print the facts as JSON")
-    add_extra_args(p)  # issue 15
+    add_extra_args(p)
     p.set_defaults(func=cmd_inspect)
     return p
 
 
 def cmd_inspect(args) -> int:
-    contents = dicom_contents(args.path)  # segmentations (issue 14): series and SEG/RTSTRUCT objects
+    contents = dicom_contents(args.path)  # segmentations: series and SEG/RTSTRUCT objects
     if contents and args.series is None and sum(e["kind"] != "image" for e in contents) > 1:
         facts = {"path": str(args.path[0]), "dicom_contents": contents}
         print(json.dumps(facts, indent=2) if args.json else "\n".join(
@@ -40,7 +40,7 @@ def cmd_inspect(args) -> int:
     facts["path"] = [str(p) for p in args.path] if len(args.path) > 1 else str(args.path[0])
     if contents:
         facts["dicom_contents"] = contents
-    facts.update(extras(vol, facts, args))  # issue 15: hints, histogram picture
+    facts.update(extras(vol, facts, args))  # hints, histogram picture
     print(json.dumps(facts, indent=2) if args.json else format_text(facts))
     return EXIT_OK
 
@@ -103,7 +103,7 @@ def format_text(facts: Dict) -> str:
                          f"{lab['volume_mm3']:>14.1f}")
     for w in facts.get("warnings", []):
         lines.append(f"warning      {w}")
-    for h in facts.get("hints", []):  # issue 15
+    for h in facts.get("hints", []):
         lines.append(f"hint         {h}")
     if facts.get("histogram_png"):
         lines.append(f"histogram    picture: {facts['histogram_png']}")

@@ -1,4 +1,4 @@
-"""What ``anatomesh inspect`` adds for preprocessing and isovalue guidance (issue 15):
+"""What ``anatomesh inspect`` adds for preprocessing and isovalue guidance:
 ``--histogram FILE.png`` (the histogram with its labelled peaks and the chosen levels marked,
 :mod:`anatomesh.app.histogram_picture`; levels from ``--level`` or the presets of
 :func:`anatomesh.app.gallery.preset_levels`) and hints (:mod:`anatomesh.app.hints`)."""

@@ -10,12 +10,12 @@ import argparse
 import sys
 
 from ...core.model.errors import AnatomeshError
-from ..fit import fit_arg  # issue 18: cut to fit
+from ..fit import fit_arg  # cut to fit
 from ..recipe import FORMATS, Recipe, load_recipe
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
-from .web import add_distance_args, margins_arg  # issue 16
-from . import preprocess_args  # issue 15: --resample, --interpolate, --fuzzy, ...
+from .web import add_distance_args, margins_arg
+from . import preprocess_args  # --resample, --interpolate, --fuzzy, ...
 
 #: flags that set the Recipe field of the same name as given
 RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
@@ -37,8 +37,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
     _smoothing_args(m)
     _decimation_args(m)
     _print_args(m)
-    add_distance_args(m)  # issue 16: distance colouring, web page levels
-    preprocess_args.add_arguments(m)  # issue 15
+    add_distance_args(m)  # distance colouring, web page levels
+    preprocess_args.add_arguments(m)
     m.add_argument("--report", help="report path (default OUT/report.json; recipe.toml is written beside it)")
     m.add_argument("--overwrite", action="store_true", default=None, help="replace existing output files")
     m.set_defaults(func=cmd_mesh)
@@ -108,7 +108,7 @@ def _print_args(m) -> None:
                         "so separately printed parts fit together")
     hollow_args(m)
     connector_args(m)
-    fit_args(m)  # issue 18: cut to fit
+    fit_args(m)  # cut to fit
     m.add_argument("--check", action="store_true", default=None,
                    help="run the 3D-print checks on the result (exit code 1 when one fails)")
     m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
@@ -127,7 +127,7 @@ def hollow_args(m) -> None:
 
 
 def fit_args(m) -> None:
-    """Issue 18: ``--fit X,Y,Z [--fit-connectors]`` (mesh and check)."""
+    """``--fit X,Y,Z [--fit-connectors]`` (mesh and check)."""
     m.add_argument("--fit", metavar="X,Y,Z",
                    help="print tool: cut every part too big for the printer's build volume (mm) into "
                         "pieces that fit, <part>_1, <part>_2, ... (fewest axis-aligned cuts, where the "
@@ -165,9 +165,9 @@ def recipe_from_args(args) -> Recipe:
         recipe.formats = _formats(args.format)
     if args.fuse:
         recipe.fuse = [split_list(g) for g in args.fuse]
-    if args.connectors:  # issue 18
+    if args.connectors:
         recipe.connectors = [_pair(g) for g in args.connectors]
-    if args.fit is not None:  # issue 18: cut to fit
+    if args.fit is not None:  # cut to fit
         recipe.fit = fit_arg(args.fit)
     if args.fit_connectors:
         recipe.fit_connectors = True
@@ -180,10 +180,10 @@ def recipe_from_args(args) -> Recipe:
         if value is not None:
             setattr(recipe, name, value)
     for name, value in (("distance_to", args.distance_to), ("margins", margins_arg(args.margins)),
-                        ("web_levels", args.web_levels)):  # issue 16
+                        ("web_levels", args.web_levels)):
         if value is not None:
             setattr(recipe, name, value)
-    preprocess_args.apply(args, recipe)  # issue 15
+    preprocess_args.apply(args, recipe)
     if not recipe.input:
         raise AnatomeshError("no input: give a scan path or a --recipe whose [input] has a path")
     if not recipe.out_dir:
@@ -197,7 +197,7 @@ def cmd_mesh(args) -> int:
     recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"), keep_voxels=False)  # memory: one shot
     rep = result.report
-    for note in rep.get("notes", []):  # segmentations (issue 14): what was meshed, on which grid
+    for note in rep.get("notes", []):  # segmentations: what was meshed, on which grid
         print(f"note: {note}", file=sys.stderr)
     for w in rep.get("warnings", []):
         print(f"warning: {w}", file=sys.stderr)
@@ -207,7 +207,7 @@ def cmd_mesh(args) -> int:
     if dec:
         line += (f", decimated {dec['faces_before']} -> {dec['faces_after']} faces "
                  f"(max error {dec['hausdorff_mm']:.3g} mm)")
-    for pre_line in preprocess_args.summary_lines(rep):  # issue 15
+    for pre_line in preprocess_args.summary_lines(rep):
         print(pre_line)
     print(f"{line} -> {recipe.out_dir}; report {result.report_path}")
     check = rep.get("print_check")

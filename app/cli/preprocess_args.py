@@ -1,4 +1,4 @@
-"""The preprocessing flags of ``anatomesh mesh`` (issue 15) and the lines it prints about them.
+"""The preprocessing flags of ``anatomesh mesh`` and the lines it prints about them.
 
 Values are taken as text and checked by :func:`anatomesh.app.preprocess_settings.check_preprocess`,
 so a bad one is one line naming the flag (exit code 2), not argparse's usage dump.

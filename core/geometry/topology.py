@@ -12,7 +12,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from ..model.mesh import degenerate_faces, face_areas, signed_volume
+from ..model.mesh import degenerate_faces, face_areas
 from . import _neighbors_kernels, _topology_kernels
 
 
@@ -219,14 +219,20 @@ def component_measures(vertices: np.ndarray, faces: np.ndarray) -> List[Dict]:
 
     Each entry is ``{"faces": index array, "area_mm2": float, "volume_mm3": float}``.
     """
-    f = np.asarray(faces)
+    f = np.asarray(faces, np.int64)
     n, lab = face_components(f, len(vertices))
-    out = []
-    areas = face_areas(vertices, f)
-    for c in range(n):
-        idx = np.flatnonzero(lab == c)
-        out.append({"faces": idx, "area_mm2": float(areas[idx].sum()),
-                    "volume_mm3": signed_volume(vertices, f[idx])})
+    if n == 0:
+        return []
+    v = np.asarray(vertices, np.float64)
+    _, first = np.unique(lab, return_index=True)
+    ref = v[f[first, 0]][lab]  # each component's volume about one of its vertices (precision)
+    a, b, c = v[f[:, 0]] - ref, v[f[:, 1]] - ref, v[f[:, 2]] - ref
+    volumes = np.bincount(lab, np.einsum("ij,ij->i", a, np.cross(b, c)), minlength=n) / 6.0
+    areas = np.bincount(lab, face_areas(v, f), minlength=n)
+    order = np.argsort(lab, kind="stable")
+    groups = np.split(order, np.cumsum(np.bincount(lab, minlength=n))[:-1])
+    out = [{"faces": groups[c], "area_mm2": float(areas[c]), "volume_mm3": float(volumes[c])}
+           for c in range(n)]
     out.sort(key=lambda d: -abs(d["volume_mm3"]))
     return out
 

@@ -121,7 +121,7 @@ def anatomical_color(name: str) -> Optional[Tuple[float, float, float]]:
     return None
 
 
-# --- body systems (web page tree, issue 16): the system of each palette rule, by its first keyword
+# --- body systems (web page tree): the system of each palette rule, by its first keyword
 #: the systems in the order a structure tree lists them
 SYSTEMS = ("organs", "vessels", "heart", "bones", "muscles", "nerves", "airways", "lesions", "other")
 _SYSTEM_OF_RULE = {

@@ -136,7 +136,7 @@ class SurfaceSet:
         if int(self.face_labels.min()) < 0:
             raise AnatomeshError("face_labels must be non-negative label values")
         seen = np.zeros(int(self.face_labels.max()) + 1, np.bool_)
-        K.mark_present(self.face_labels, seen)  # speed: 0.02 s, not 0.13 s, on 6.8 M faces
+        K.mark_present(self.face_labels, seen)  # one pass in a kernel, no temporary arrays
         return [int(v) for v in np.flatnonzero(seen) if v != self.background]
 
     def shell(self, value: int) -> Mesh:

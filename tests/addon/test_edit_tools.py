@@ -1,4 +1,4 @@
-"""Edit Mode print tools (issue 18) through ``bpy.ops`` on constructed meshes with known answers:
+"""Edit Mode print tools through ``bpy.ops`` on constructed meshes with known answers:
 a cube with a deleted face is closed again by Fill Holes; a tiny extra shell is removed and the
 big one kept; Relax moves only the selected vertices and never farther than the maximum
 deviation; the selector selects exactly the non-manifold edges of a fin, the rim of a hole, and

@@ -1,4 +1,4 @@
-"""Cut to Fit (issue 18) in Blender: the Print panel's button cuts a block too long for the build
+"""Cut to Fit in Blender: the Print panel's button cuts a block too long for the build
 volume into closed pieces in its collection (named <part>_1, <part>_2, with its material and
 properties) and hides the block; a part that fits is left alone."""
 from __future__ import annotations

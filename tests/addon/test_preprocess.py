@@ -1,4 +1,4 @@
-"""The Preprocess panel in Blender (issue 15): extraction with preprocessing on the real scans,
+"""The Preprocess panel in Blender: extraction with preprocessing on the real scans,
 fuzzy shells' opacity, the isovalue gallery image, the live isovalue, and the recipe round trip."""
 from __future__ import annotations
 

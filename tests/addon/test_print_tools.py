@@ -1,4 +1,4 @@
-"""The Print panel's tools (issue 18) through ``bpy.ops`` give the command line's results on the
+"""The Print panel's tools through ``bpy.ops`` give the command line's results on the
 41-label sample: Fuse (liver + gallbladder re-extracted as one solid: the faces and volume of
 ``anatomesh mesh --fuse``), Hollow (the liver at 2 mm: the volume saved within 1 % of
 ``--hollow 2``), Clearance and Connectors (L1/L2: what ``--clearance`` / ``--connectors`` do);

@@ -1,4 +1,4 @@
-"""Blender side of the web page (issue 16): distance colours to the active object, Export Web."""
+"""Blender side of the web page: distance colours to the active object, Export Web."""
 from __future__ import annotations
 
 import json

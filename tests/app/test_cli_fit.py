@@ -1,4 +1,4 @@
-"""Cut to fit (issue 18) through the doors: `anatomesh mesh --fit` writes the liver of the 41-label
+"""Cut to fit through the doors: `anatomesh mesh --fit` writes the liver of the 41-label
 sample as pieces that fit, with one `fit` entry in the report's fixes (volumes add up); `anatomesh
 check --fit --out` does the same on mesh files; a bad --fit exits 2 with one line; the recipe keys
 [check] fit_mm / fit_connectors round-trip."""

@@ -1,4 +1,4 @@
-"""Preprocessing through the command line and recipes on the real scans (issue 15): every step
+"""Preprocessing through the command line and recipes on the real scans: every step
 reported with its parameters and measured effect, difference colours in PLY/GLB, the reported
 difference checked against an independent measurement, isovalue guidance pictures, hints, and
 bad parameters as one line with exit code 2."""

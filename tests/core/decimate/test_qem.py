@@ -285,7 +285,7 @@ def _pymeshlab_hausdorff(ms, a, b, samples):
 
 @pytest.mark.parametrize("hollow", [False, True], ids=["ball", "shell_around_core"])
 def test_small_shells_reach_ten_percent_within_the_default_cap(hollow):
-    """Issue 18: ``--decimate 0.1`` (ratio 0.1, cap one 1.5 mm voxel) stopped small shells at
+    """``--decimate 0.1`` (ratio 0.1, cap one 1.5 mm voxel) stopped small shells at
     12-16 % (28-29 % in the issue): the cap was checked on sqrt(quadric cost), which grows with
     the number of planes merged (4-6x the true distance here). pymeshlab's topology-preserving
     quadric collapse reaches 10 % on the same shells, closed, same genus, within the cap."""

@@ -1,4 +1,4 @@
-"""pymeshlab as an independent oracle for the smoothing report (issue 18): on the real 41-label
+"""pymeshlab as an independent oracle for the smoothing report: on the real 41-label
 sample smoothed with the default, MeshLab's own Hausdorff distance between each unsmoothed and
 smoothed shell agrees with the report's, and its topological measures and self-intersection test
 agree with ours (closed, two-manifold, the same genus and components, nothing crossing but at
