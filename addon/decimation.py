@@ -96,7 +96,7 @@ def decimated(objs, recipe, progress=None, sets: Optional[List] = None):
         sets = [(ss, [(o, k + 1) for k, o in enumerate(members)])]
     for ss, members in sets or []:
         out, rep = stages.decimate(ss, recipe, stages.one_voxel(ss), progress)
-        shells = {m.value: m for m in stages.output_shells(out)[0]}
+        shells = {m.value: m for m in stages.shells(out, recipe)[0]}  # as files show them, specks dropped
         for o, label in members:
             value = ss.shell_values.get(label, label)
             m = shells[value]
@@ -135,8 +135,8 @@ def preview_ratios(collection, objs, target, ratio, faces, max_error) -> Dict[st
     """Decimate-modifier ratio of each object: its faces after / before in the run Apply makes
     (:func:`decimated`, same settings), so the preview shows Apply's face counts."""
     recipe = decimation_recipe(target, ratio, faces, max_error)
-    return {o.name: m["faces_after"] / max(m["faces_before"], 1)
-            for o, _, _, m in decimated(objs, recipe, sets=shown_sets(collection, objs))}
+    return {o.name: mesh.n_faces / max(m["faces_before"], 1)
+            for o, mesh, _, m in decimated(objs, recipe, sets=shown_sets(collection, objs))}
 
 
 def uniform_ratios(objs, target, ratio, faces) -> Dict[str, float]:

@@ -21,7 +21,7 @@ numba compiles on one core, so a first run shares the compiling among :data:`LAN
 (:func:`sharing_kernels`): each runs every step, compiles the kernels it claims first and runs
 the others' as plain Python on the tiny inputs (milliseconds); a step is ready when every lane
 has passed it. On 2 cores the first label extraction waits ~7-9 s instead of ~11-13 s, all
-kernels take ~2 min instead of ~3.3 (measured in the README).
+kernels take ~2 min instead of ~3.3 (docs/MEASURED.md).
 
 Run as a script it prints one line per step, ``warmup <i>/<n> <step>`` once the steps before it
 are ready, then ``warmup done <seconds>`` (the add-on reads them for its progress bar).
