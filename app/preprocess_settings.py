@@ -31,9 +31,6 @@ from ..core.model.errors import AnatomeshError
 
 RESAMPLE_METHODS = ("linear", "cubic", "lanczos")
 SMOOTH_FILTERS = ("gaussian", "median", "diffusion")
-#: recipe field → TOML key of the [preprocess] section (the same names)
-KEYS = ("resample", "resample_method", "roi", "smooth_volume", "interpolate", "fuzzy_boundary",
-        "fill_cavities", "close_handles", "fuzzy", "precise", "difference_colors")
 
 
 def parse_numbers(text, flag: str, count: Optional[Tuple[int, ...]] = None) -> List[float]:

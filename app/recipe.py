@@ -42,7 +42,7 @@ from typing import Dict, List, Optional, Union
 from ..core.model.errors import AnatomeshError
 from ..core.model.volume import SPACES
 from ..core.printing.profiles import PROFILES as PRINTER_PROFILES
-from .preprocess_settings import KEYS as PREPROCESS_KEYS, check_preprocess  # preprocessing
+from .preprocess_settings import check_preprocess
 from .fit import check_fit  # cut to fit
 
 SMOOTH_NONE = "none"
@@ -61,6 +61,52 @@ RECIPE_FILE = "recipe.toml"
 DICOM_FORMAT = "dicom"
 CONTOURS_RASTER, CONTOURS_TILE = "raster", "tile"
 CONTOURS = (CONTOURS_RASTER, CONTOURS_TILE)
+
+
+#: what a setting's value may be in a recipe file: (check, words for the error, conversion)
+_KINDS = {
+    "bool": (lambda v: isinstance(v, bool), "true or false", None),
+    "int": (lambda v: _is_int(v), "a whole number", None),
+    "float": (lambda v: _is_number(v), "a number", float),
+    "str": (lambda v: isinstance(v, str), "a text", None),
+    "path": (lambda v: isinstance(v, str), "a path", None),
+    "paths": (lambda v: isinstance(v, str) or (isinstance(v, list) and v and all(isinstance(x, str) for x in v)),
+              "a path or a list of paths", None),
+    "floats": (lambda v: isinstance(v, list) and all(_is_number(x) for x in v), "a list of numbers",
+               lambda v: [float(x) for x in v]),
+    "strs": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of names", None),
+    "ints": (lambda v: isinstance(v, list) and all(_is_int(x) for x in v), "a list of whole numbers", None),
+    "label": (lambda v: isinstance(v, str) or _is_int(v), "a label name or value", None),
+    "labels": (lambda v: v == "all" or (isinstance(v, list) and all(isinstance(x, str) or _is_int(x) for x in v)),
+               "\"all\" or a list of label values/names", None),
+    "label_groups": (lambda v: isinstance(v, list) and all(isinstance(g, list) and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups", None),
+    "label_pairs": (lambda v: isinstance(v, list) and all(isinstance(g, list) and len(g) == 2 and all(
+        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label pairs", None),
+    "series": (lambda v: isinstance(v, (str, int)) and not isinstance(v, bool), "a series UID or number", str),
+    "number_or_floats": (lambda v: _is_number(v) or (isinstance(v, list) and all(_is_number(x) for x in v)),
+                         "a number or a list of numbers", None),
+}
+
+
+def setting(default, section: str, key: str, kind: str, help: str, *, unit: str = "",
+            allowed: str = "", count: tuple = (), choices: tuple = (), flag: str = "",
+            metavar: str = "", factory=None):
+    """A recipe field, defined once: its default, where it sits in a recipe file (``[section]
+    key``), its kind (:data:`_KINDS`; a list kind with ``count``: one of these lengths; a text
+    with ``choices``: one of them), what it does (``help``: the command line's help and the
+    documentation's), its ``unit``, its command-line ``flag`` (with ``metavar``; flags of plain
+    kinds are made from this definition: :func:`anatomesh.app.cli.settings_args.add_setting_args`)
+    and, for the one-line error of a wrong value, what is ``allowed`` (default: the choices or
+    the kind's words)."""
+    if choices and not allowed:
+        allowed = " or ".join(f'"{c}"' for c in choices)
+    meta = {"section": section, "key": key, "kind": kind, "help": help, "unit": unit,
+            "allowed": allowed or _KINDS[kind][1], "count": count, "choices": tuple(choices),
+            "flag": flag, "metavar": metavar}
+    if factory is not None:
+        return field(default_factory=factory, metadata=meta)
+    return field(default=default, metadata=meta)
 
 
 @dataclass
@@ -108,68 +154,132 @@ class Recipe:
     ``margins`` (mm, default 2, 5, 10) red, yellow, green (:mod:`anatomesh.core.geometry.margins`);
     ``web_levels`` — levels of detail of the "web" page (:mod:`anatomesh.app.web`), 1..4.
     """
-
-    input: Union[str, List[str]] = ""
-    out_dir: str = "out"
-    series: Optional[str] = None
-    volume_index: Optional[int] = None
-    label_table: Optional[str] = None
-    labels: Union[str, List[Union[int, str]]] = "all"
-    levels: List[float] = field(default_factory=list)
-    space: str = "RAS"
-    cap: bool = True
-    keep_largest: bool = False
-    min_component_mm3: float = 0.0
-    smooth: str = SMOOTH_DEFAULT
-    iterations: Optional[int] = None
-    lam: Optional[float] = None
-    mu: Optional[float] = None
-    max_deviation: Optional[float] = None
-    damping_distance: Optional[float] = None
-    staircase: str = "auto"
-    decimate: Optional[float] = None
-    target_faces: Optional[int] = None
-    max_error: Optional[float] = None
-    check: bool = False
-    profile: str = "fdm"
-    min_wall: Optional[float] = None
-    min_gap: Optional[float] = None
-    fuse: List[List[Union[int, str]]] = field(default_factory=list)
-    thicken: bool = False
-    clearance: Optional[float] = None
-    # printable-part tools: hollow to this wall (mm) with drain holes
-    hollow: Optional[float] = None
-    drain_holes: int = 2
-    drain_diameter: Optional[float] = None
-    connectors: List[List[Union[int, str]]] = field(default_factory=list)
-    # cut to fit the build volume [x, y, z] mm, pins across the cuts
-    fit: Optional[List[float]] = None
-    fit_connectors: bool = False
-    formats: List[str] = field(default_factory=lambda: ["stl"])
-    render_samples: int = 32
-    render_size: List[int] = field(default_factory=lambda: [960, 540])
-    lod: int = 0
-    report: Optional[str] = None
-    overwrite: bool = False
-    # distance colouring and the web page
-    distance_to: Optional[Union[int, str]] = None
-    margins: List[float] = field(default_factory=lambda: [2.0, 5.0, 10.0])
-    web_levels: int = 2
-    # segmentations
-    grid: Optional[str] = None
-    contours: str = CONTOURS_RASTER
-    # -- preprocessing before and around extraction (see app/preprocess_settings.py) --
-    resample: Optional[List[float]] = None
-    resample_method: str = "linear"
-    roi: Optional[List[float]] = None
-    smooth_volume: Optional[str] = None
-    interpolate: bool = False
-    fuzzy_boundary: bool = False
-    fill_cavities: bool = False
-    close_handles: Optional[float] = None
-    fuzzy: Optional[List[float]] = None
-    precise: bool = False
-    difference_colors: bool = False
+    input: Union[str, List[str]] = setting("", "input", "path", "paths", "the scan, label map, mask folder or DICOM file/folder")
+    out_dir: str = setting("out", "output", "dir", "path", "the output folder")
+    series: Optional[str] = setting(None, "input", "series", "series", "a DICOM folder's series (number or UID)")
+    volume_index: Optional[int] = setting(None, "input", "volume", "int", "the volume of a 4D file")
+    label_table: Optional[str] = setting(None, "input", "label_table", "path", "label names (JSON, CSV or Slicer colour table)")
+    labels: Union[str, List[Union[int, str]]] = setting("all", "input", "labels", "labels", "the labels to mesh")
+    levels: List[float] = setting(None, "input", "levels", "floats", "isovalues of a scalar scan", factory=list)
+    space: str = setting("RAS", "input", "space", "str", "coordinate space of the written vertices",
+                         choices=SPACES, flag="--space")
+    grid: Optional[str] = setting(None, "input", "grid", "str", "the grid masks or a segmentation are meshed on",
+                                  allowed="a mask name, \"image\" or \"native\"")
+    contours: str = setting(CONTOURS_RASTER, "input", "contours", "str",
+                            "RTSTRUCT contours to surfaces: raster (even-odd rasterisation, shape-based "
+                            "interpolation, conforming extraction) or tile (direct tiling between adjacent "
+                            "contours)", choices=CONTOURS, flag="--contours")
+    resample: Optional[List[float]] = setting(None, "preprocess", "resample", "number_or_floats",
+                                              "resample to this voxel size", unit="mm", allowed="a voxel size in mm or [x, y, z]",
+                                              count=(1, 3))
+    resample_method: str = setting("linear", "preprocess", "resample_method", "str", "interpolation of --resample",
+                                   allowed="\"linear\", \"cubic\" or \"lanczos\"")
+    roi: Optional[List[float]] = setting(None, "preprocess", "roi", "floats", "crop to this box", unit="mm",
+                                         allowed="[x0, y0, z0, x1, y1, z1] in mm", count=(6,))
+    smooth_volume: Optional[str] = setting(None, "preprocess", "smooth_volume", "str", "filter the volume first",
+                                           allowed="\"gaussian:SIGMA_MM\", \"median:SIZE_MM\" or \"diffusion:ITERATIONS\"")
+    interpolate: bool = setting(False, "preprocess", "interpolate", "bool", "label maps: shape-based interpolation")
+    fuzzy_boundary: bool = setting(False, "preprocess", "fuzzy_boundary", "bool", "label maps: morphological fuzzy boundary")
+    fill_cavities: bool = setting(False, "preprocess", "fill_cavities", "bool", "label maps: fill enclosed pockets")
+    close_handles: Optional[float] = setting(None, "preprocess", "close_handles", "float", "label maps: plug tunnels up to this size",
+                                             unit="mm", allowed="a size in mm")
+    fuzzy: Optional[List[float]] = setting(None, "preprocess", "fuzzy", "floats", "N nested isosurfaces over [I1, I2]",
+                                           allowed="[I1, I2] or [I1, I2, N]", count=(2, 3))
+    precise: bool = setting(False, "preprocess", "precise", "bool", "refine isosurfaces onto the trilinear interpolant")
+    difference_colors: bool = setting(False, "preprocess", "difference_colors", "bool",
+                                      "colour surfaces by their distance to the surface without preprocessing")
+    cap: bool = setting(True, "surfaces", "cap", "bool",
+                        "leave isosurfaces open where they leave the volume (default: capped, closed)",
+                        flag="--no-cap")
+    keep_largest: bool = setting(False, "surfaces", "keep_largest", "bool",
+                                 "keep only the largest component per surface", flag="--keep-largest")
+    min_component_mm3: float = setting(0.0, "surfaces", "min_component_mm3", "float",
+                                       "drop components smaller than this volume", unit="mm³",
+                                       flag="--min-component", metavar="MM3")
+    smooth: str = setting(SMOOTH_DEFAULT, "smoothing", "method", "str",
+                          "smoothing preset or filter: organ (Taubin kept inside each voxel cell, volumes "
+                          "restored), light, strong, taubin, laplacian, hc, mean_curvature, normal_mean, "
+                          "normal_median, none (raw surface)", allowed="a smoothing preset or method name",
+                          flag="--smooth")
+    iterations: Optional[int] = setting(None, "smoothing", "iterations", "int",
+                                         "smoothing iterations (overrides the preset)", flag="--iterations")
+    lam: Optional[float] = setting(None, "smoothing", "lambda", "float", "smoothing step λ (overrides the preset)",
+                                  flag="--lambda")
+    mu: Optional[float] = setting(None, "smoothing", "mu", "float", "Taubin's negative step μ (overrides the preset)",
+                                 flag="--mu")
+    max_deviation: Optional[float] = setting(None, "smoothing", "max_deviation_mm", "float",
+                                             "no vertex moves further than this from the unsmoothed surface",
+                                             unit="mm", flag="--max-deviation", metavar="MM")
+    damping_distance: Optional[float] = setting(None, "smoothing", "damping_distance_mm", "float",
+                                                "smooth less where another structure is closer than this "
+                                                "(Mönch et al. 2011)", unit="mm", flag="--damping-distance",
+                                                metavar="MM")
+    staircase: str = setting("auto", "smoothing", "staircase", "str",
+                             "extra slice-axis smoothing for thick slices (auto: slice >= 1.5x in-plane)",
+                             choices=STAIRCASE, flag="--staircase")
+    decimate: Optional[float] = setting(None, "decimation", "ratio", "float",
+                                        "after smoothing, keep this fraction of the faces (0.1 = 10 %); seams stay "
+                                        "shared, shells closed; the error in mm is measured and reported",
+                                        allowed="a number in (0, 1]", flag="--decimate", metavar="RATIO")
+    target_faces: Optional[int] = setting(None, "decimation", "target_faces", "int", "decimate to N faces in all",
+                                           flag="--target-faces", metavar="N")
+    max_error: Optional[float] = setting(None, "decimation", "max_error_mm", "float",
+                                         "decimate as far as the surface stays within this of the smoothed one; "
+                                         "with --decimate/--target-faces a cap on their error (default: one voxel)",
+                                         unit="mm", flag="--max-error", metavar="MM")
+    check: bool = setting(False, "check", "enabled", "bool",
+                          "run the 3D-print checks on the result (exit code 1 when one fails)", flag="--check")
+    profile: str = setting("fdm", "check", "profile", "str", "printer profile of the print checks and tools",
+                           choices=PROFILES, flag="--profile")
+    min_wall: Optional[float] = setting(None, "check", "min_wall_mm", "float",
+                                        "thinnest printable wall (overrides the profile)", unit="mm",
+                                        flag="--min-wall", metavar="MM")
+    min_gap: Optional[float] = setting(None, "check", "min_gap_mm", "float",
+                                       "narrowest gap that stays open (overrides the profile)", unit="mm",
+                                       flag="--min-gap", metavar="MM")
+    fuse: List[List[Union[int, str]]] = setting(None, "check", "fuse", "label_groups", "label groups merged into one solid each",
+                                                allowed="a list of label groups, e.g. [[\"liver\", \"spleen\"]]", factory=list)
+    thicken: bool = setting(False, "check", "thicken", "bool",
+                            "print fix: grow parts thinner than the minimum wall (--min-wall or the profile's) "
+                            "in the label map before extraction", flag="--thicken")
+    clearance: Optional[float] = setting(None, "check", "clearance_mm", "float",
+                                         "print fix: pull touching parts apart by this along their shared "
+                                         "interfaces, so separately printed parts fit together", unit="mm",
+                                         flag="--clearance", metavar="MM")
+    hollow: Optional[float] = setting(None, "check", "hollow_mm", "float",
+                                      "print tool (resin/powder): hollow every part to a shell of this wall, with "
+                                      "drain holes at its lowest points (+z of the patient is up)", unit="mm",
+                                      flag="--hollow", metavar="WALL_MM")
+    drain_holes: int = setting(2, "check", "drain_holes", "int", "drain holes per cavity",
+                                flag="--drain-holes", metavar="N")
+    drain_diameter: Optional[float] = setting(None, "check", "drain_diameter_mm", "float",
+                                              "drain hole diameter (default: the profile's, fdm 4 mm, resin 3 mm)",
+                                              unit="mm", flag="--drain-diameter", metavar="MM")
+    connectors: List[List[Union[int, str]]] = setting(None, "check", "connectors", "label_pairs",
+                                                      "pairs of touching labels joined by pins and pockets",
+                                                      allowed="a list of label pairs, e.g. [[\"liver\", \"stomach\"]]", factory=list)
+    fit: Optional[List[float]] = setting(None, "check", "fit_mm", "floats", "the printer's build volume: bigger parts are cut to fit",
+                                         unit="mm", allowed="the build volume [x, y, z] in mm", count=(3,))
+    fit_connectors: bool = setting(False, "check", "fit_connectors", "bool", "pins across the cuts")
+    formats: List[str] = setting(None, "output", "formats", "strs", "output formats", allowed="a list of format names",
+                                 factory=lambda: ["stl"])
+    report: Optional[str] = setting(None, "output", "report", "path",
+                                    "report path (default OUT/report.json; recipe.toml is written beside it)",
+                                    flag="--report")
+    overwrite: bool = setting(False, "output", "overwrite", "bool", "replace existing output files",
+                              flag="--overwrite")
+    render_samples: int = setting(32, "output", "render_samples", "int", "Cycles samples of the png")
+    render_size: List[int] = setting(None, "output", "render_size", "ints", "pixel size of the png",
+                                     allowed="[width, height] in pixels", count=(2,),
+                                     factory=lambda: [960, 540])
+    lod: int = setting(0, "output", "lod", "int",
+                     "also write N GLB levels of detail, <scan>_lod0.glb (finest) .. _lod{N-1}.glb, each half "
+                     "the faces of the one before, from one progressive decimation run",
+                     allowed="a whole number (GLB levels of detail, 0: none)", flag="--lod", metavar="N")
+    distance_to: Optional[Union[int, str]] = setting(None, "distance", "to", "label", "colour every surface by its distance to this one")
+    margins: List[float] = setting(None, "distance", "margins_mm", "floats", "distance bands: red, yellow, green", unit="mm",
+                                   allowed="a list of distances in mm, e.g. [2, 5, 10]", factory=lambda: [2.0, 5.0, 10.0])
+    web_levels: int = setting(2, "web", "levels", "int", "levels of detail of the web page", allowed="a whole number (1..4)")
 
     def smoothing_overrides(self) -> Dict:
         """What this recipe sets of the smoothing preset's own settings (``iterations``, ``lam``,
@@ -229,30 +339,58 @@ def check_recipe(recipe: Recipe) -> None:
     check_preprocess(recipe)  # preprocessing
 
 
-#: TOML section → {TOML key: Recipe field}
-SECTIONS: Dict[str, Dict[str, str]] = {
-    "input": {"path": "input", "series": "series", "volume": "volume_index",
-              "label_table": "label_table", "labels": "labels", "levels": "levels", "space": "space",
-              "grid": "grid", "contours": "contours"},
-    "preprocess": {k: k for k in PREPROCESS_KEYS},
-    "surfaces": {"cap": "cap", "keep_largest": "keep_largest", "min_component_mm3": "min_component_mm3"},
-    "smoothing": {"method": "smooth", "iterations": "iterations", "lambda": "lam", "mu": "mu",
-                  "max_deviation_mm": "max_deviation", "damping_distance_mm": "damping_distance",
-                  "staircase": "staircase"},
-    "decimation": {"ratio": "decimate", "target_faces": "target_faces", "max_error_mm": "max_error"},
-    "check": {"enabled": "check", "profile": "profile", "min_wall_mm": "min_wall", "min_gap_mm": "min_gap",
-              "fuse": "fuse", "thicken": "thicken", "clearance_mm": "clearance",
-              "hollow_mm": "hollow", "drain_holes": "drain_holes", "drain_diameter_mm": "drain_diameter",
-              "connectors": "connectors"},
-    "output": {"dir": "out_dir", "formats": "formats", "report": "report", "overwrite": "overwrite",
-               "render_samples": "render_samples", "render_size": "render_size", "lod": "lod"},
-}
-# cut to fit
-SECTIONS["check"].update(fit_mm="fit", fit_connectors="fit_connectors")
-# distance colouring and the web page
-SECTIONS["distance"] = {"to": "distance_to", "margins_mm": "margins"}
-SECTIONS["web"] = {"levels": "web_levels"}
-#: a comment written above each section
+def check_recipe(recipe: Recipe) -> None:
+    """Raise :class:`AnatomeshError` (one line, naming the setting) for a setting out of range;
+    reads no input file. Normalises ``recipe`` in place (format names, fit, margins): a run
+    checks its own copy."""
+    if not recipe.input:
+        raise AnatomeshError("no input scan: give a path (or input.path in a recipe)")
+    if recipe.smooth != SMOOTH_NONE:
+        from ..core.smooth.presets import check_settings
+
+        check_settings(recipe.smooth, **recipe.smoothing_overrides())
+    recipe.formats = [str(f).strip().lower().lstrip(".") for f in recipe.formats]
+    bad = [f for f in recipe.formats if f not in FORMATS]
+    if bad or not recipe.formats:
+        raise AnatomeshError(f"unknown --format {','.join(bad) or '(none)'}; use a comma list of "
+                             f"{', '.join(FORMATS)}")
+    for name, value, allowed in (("space", recipe.space, SPACES), ("staircase", recipe.staircase, STAIRCASE),
+                                 ("profile", recipe.profile, PROFILES), ("contours", recipe.contours, CONTOURS)):
+        if value not in allowed:
+            raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+    if not (isinstance(recipe.lod, int) and 0 <= recipe.lod <= 8):
+        raise AnatomeshError(f"--lod is the number of GLB levels of detail, 0..8, got {recipe.lod!r}")
+    if recipe.decimate is not None and recipe.target_faces is not None:
+        raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
+                             "may come with either as a cap on the error)")
+    if recipe.decimate is not None and not 0.0 < recipe.decimate <= 1.0:
+        raise AnatomeshError(f"--decimate is the fraction of faces kept, in (0, 1], got {recipe.decimate}")
+    if recipe.target_faces is not None and (int(recipe.target_faces) != recipe.target_faces
+                                            or recipe.target_faces < 4):
+        raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
+    if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
+        raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
+    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance",
+                 "hollow", "drain_diameter"):
+        value = getattr(recipe, name)
+        if value is not None and not value > 0:
+            raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
+    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):
+        raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
+    recipe.fit = check_fit(recipe.fit)  # cut to fit
+    if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
+        raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
+    # distance colouring and the web page
+    from ..core.geometry.margins import check_margins  # speed: numba's kernels load on use
+
+    recipe.margins = list(check_margins(recipe.margins))
+    if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
+        raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "
+                             f"got {recipe.web_levels!r}")
+    check_preprocess(recipe)  # preprocessing
+
+
+#: the order of a recipe file's sections, each with a comment written above it
 _NOTES = {
     "input": "scan, label map, mask folder, DICOM SEG/RTSTRUCT; labels: \"all\" or values/names; levels: "
              "isovalues of a scalar scan; grid: a mask name, \"image\" or \"native\"; contours: raster or tile",
@@ -273,85 +411,28 @@ _NOTES = {
                 "within margins_mm red, yellow, green",
     "web": "the web page (format web): levels of detail, coarsest shown first",
 }
-#: Recipe fields holding paths (resolved against the recipe's folder)
-PATH_FIELDS = ("input", "label_table", "out_dir", "report")
 
-_NUMBER = "a number"
-#: Recipe field → (check, what is allowed), for the one-line type errors
-_TYPES = {
-    "input": (lambda v: isinstance(v, str) or (isinstance(v, list) and v and all(isinstance(x, str) for x in v)),
-              "a path or a list of paths"),
-    "series": (lambda v: isinstance(v, (str, int)) and not isinstance(v, bool), "a series UID or number"),
-    "volume_index": (lambda v: _is_int(v), "a whole number"),
-    "label_table": (lambda v: isinstance(v, str), "a path"),
-    "labels": (lambda v: v == "all" or (isinstance(v, list) and all(
-        isinstance(x, str) or _is_int(x) for x in v)), "\"all\" or a list of label values/names"),
-    "levels": (lambda v: isinstance(v, list) and all(_is_number(x) for x in v), "a list of numbers"),
-    "space": (lambda v: isinstance(v, str), "\"RAS\" or \"LPS\""),
-    "grid": (lambda v: isinstance(v, str), "a mask name, \"image\" or \"native\""),
-    "contours": (lambda v: isinstance(v, str), "\"raster\" or \"tile\""),
-    "cap": (lambda v: isinstance(v, bool), "true or false"),
-    "keep_largest": (lambda v: isinstance(v, bool), "true or false"),
-    "min_component_mm3": (lambda v: _is_number(v), _NUMBER),
-    "smooth": (lambda v: isinstance(v, str), "a smoothing preset or method name"),
-    "iterations": (lambda v: _is_int(v), "a whole number"),
-    "lam": (lambda v: _is_number(v), _NUMBER),
-    "mu": (lambda v: _is_number(v), _NUMBER),
-    "max_deviation": (lambda v: _is_number(v), _NUMBER),
-    "damping_distance": (lambda v: _is_number(v), _NUMBER),
-    "staircase": (lambda v: isinstance(v, str), "\"auto\", \"on\" or \"off\""),
-    "decimate": (lambda v: _is_number(v), "a number in (0, 1]"),
-    "target_faces": (lambda v: _is_int(v), "a whole number"),
-    "max_error": (lambda v: _is_number(v), _NUMBER),
-    "check": (lambda v: isinstance(v, bool), "true or false"),
-    "profile": (lambda v: isinstance(v, str), "\"fdm\" or \"resin\""),
-    "min_wall": (lambda v: _is_number(v), _NUMBER),
-    "min_gap": (lambda v: _is_number(v), _NUMBER),
-    "fuse": (lambda v: isinstance(v, list) and all(isinstance(g, list) and all(
-        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label groups, e.g. [[\"liver\", \"spleen\"]]"),
-    "thicken": (lambda v: isinstance(v, bool), "true or false"),
-    "clearance": (lambda v: _is_number(v), _NUMBER),
-    "hollow": (lambda v: _is_number(v), _NUMBER),
-    "drain_holes": (lambda v: _is_int(v), "a whole number"),
-    "drain_diameter": (lambda v: _is_number(v), _NUMBER),
-    "connectors": (lambda v: isinstance(v, list) and all(isinstance(g, list) and len(g) == 2 and all(
-        isinstance(x, str) or _is_int(x) for x in g) for g in v), "a list of label pairs, e.g. [[\"liver\", \"stomach\"]]"),
-    "out_dir": (lambda v: isinstance(v, str), "a folder path"),
-    "formats": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of format names"),
-    "report": (lambda v: isinstance(v, str), "a file path"),
-    "overwrite": (lambda v: isinstance(v, bool), "true or false"),
-    "render_samples": (lambda v: _is_int(v), "a whole number"),
-    "lod": (lambda v: _is_int(v), "a whole number (GLB levels of detail, 0: none)"),
-    "render_size": (lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(x) for x in v),
-                    "[width, height] in pixels"),
-    # preprocessing
-    "resample": (lambda v: _is_number(v) or (isinstance(v, list) and len(v) in (1, 3) and all(_is_number(x) for x in v)),
-                 "a voxel size in mm or [x, y, z]"),
-    "resample_method": (lambda v: isinstance(v, str), "\"linear\", \"cubic\" or \"lanczos\""),
-    "roi": (lambda v: isinstance(v, list) and len(v) == 6 and all(_is_number(x) for x in v),
-            "[x0, y0, z0, x1, y1, z1] in mm"),
-    "smooth_volume": (lambda v: isinstance(v, str), "\"gaussian:SIGMA_MM\", \"median:SIZE_MM\" or \"diffusion:ITERATIONS\""),
-    "interpolate": (lambda v: isinstance(v, bool), "true or false"),
-    "fuzzy_boundary": (lambda v: isinstance(v, bool), "true or false"),
-    "fill_cavities": (lambda v: isinstance(v, bool), "true or false"),
-    "close_handles": (lambda v: _is_number(v), "a size in mm"),
-    "fuzzy": (lambda v: isinstance(v, list) and len(v) in (2, 3) and all(_is_number(x) for x in v),
-              "[I1, I2] or [I1, I2, N]"),
-    "precise": (lambda v: isinstance(v, bool), "true or false"),
-    "difference_colors": (lambda v: isinstance(v, bool), "true or false"),
-}
-# cut to fit
-_TYPES["fit"] = (lambda v: isinstance(v, list) and len(v) == 3 and all(_is_number(x) for x in v),
-                 "the build volume [x, y, z] in mm")
-_TYPES["fit_connectors"] = (lambda v: isinstance(v, bool), "true or false")
-# distance colouring and the web page
-_TYPES["distance_to"] = (lambda v: isinstance(v, str) or _is_int(v), "a label name or value")
-_TYPES["margins"] = (lambda v: isinstance(v, list) and all(_is_number(x) for x in v),
-                     "a list of distances in mm, e.g. [2, 5, 10]")
-_TYPES["web_levels"] = (lambda v: _is_int(v), "a whole number (1..4)")
-_FLOAT_FIELDS = {"min_component_mm3", "lam", "mu", "max_deviation", "damping_distance", "decimate",
-                 "max_error", "min_wall", "min_gap", "clearance", "hollow", "drain_diameter",
-                 "close_handles"}
+
+def sections(recipe_type=Recipe) -> Dict[str, Dict[str, str]]:
+    """TOML section → {TOML key: field name} of a recipe type, from its fields' own definitions
+    (sections in the order of :data:`_NOTES`)."""
+    out: Dict[str, Dict[str, str]] = {section: {} for section in _NOTES}
+    for f in dataclasses.fields(recipe_type):
+        out[f.metadata["section"]][f.metadata["key"]] = f.name
+    return out
+
+
+def _fields(recipe_type=Recipe) -> Dict[str, dataclasses.Field]:
+    return {f.name: f for f in dataclasses.fields(recipe_type)}
+
+
+def _path_fields(recipe_type=Recipe) -> tuple:
+    """The fields holding paths (resolved against the recipe's folder)."""
+    return tuple(f.name for f in dataclasses.fields(recipe_type) if f.metadata["kind"] in ("path", "paths"))
+
+
+#: the Recipe's sections (:func:`sections`)
+SECTIONS = sections(Recipe)
 
 
 def _is_int(v) -> bool:
@@ -360,6 +441,20 @@ def _is_int(v) -> bool:
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def settings_table(recipe_type=Recipe) -> str:
+    """Every recipe setting as a Markdown table (section, key, value, default, unit, what it does,
+    command-line flag), from the fields' own definitions."""
+    rows = ["| section | key | value | default | unit | what it does | flag |", "|---|---|---|---|---|---|---|"]
+    fields = _fields(recipe_type)
+    for f in (fields[name] for keys in sections(recipe_type).values() for name in keys.values()):
+        m = f.metadata
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        rows.append(f"| `[{m['section']}]` | `{m['key']}` | {m['allowed']} | "
+                    f"{'' if default in (None, '') else '`' + _toml_value(default) + '`'} | {m['unit']} | {m['help']} | "
+                    f"{'`' + m['flag'] + '`' if m['flag'] else ''} |")
+    return "\n".join(rows) + "\n"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -381,18 +476,19 @@ def load_recipe(path) -> Recipe:
     return recipe_from_text(text, base=path.parent, source=path)
 
 
-def recipe_from_text(text: str, base=None, source=None) -> Recipe:
+def recipe_from_text(text: str, base=None, source=None, recipe_type=Recipe) -> Recipe:
     """:func:`load_recipe` on TOML text; relative paths resolve against ``base`` (if given)."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise AnatomeshError(f"not valid TOML ({exc}); fix the recipe file", source) from None
     values = {}
+    known, fields = sections(recipe_type), _fields(recipe_type)
     for section, body in doc.items():
-        keys = SECTIONS.get(section)
+        keys = known.get(section)
         if keys is None:
             raise AnatomeshError(f"unknown recipe section [{section}]; allowed sections: "
-                                 f"{', '.join(SECTIONS)}", source)
+                                 f"{', '.join(known)}", source)
         if not isinstance(body, dict):
             raise AnatomeshError(f"{section} must be a [{section}] section with keys "
                                  f"{', '.join(keys)}", source)
@@ -401,21 +497,16 @@ def recipe_from_text(text: str, base=None, source=None) -> Recipe:
             if name is None:
                 raise AnatomeshError(f"unknown key {key!r} in [{section}]; allowed keys: "
                                      f"{', '.join(keys)}", source)
-            ok, allowed = _TYPES[name]
-            if not ok(value):
-                raise AnatomeshError(f"[{section}] {key} must be {allowed}, got {value!r}", source)
-            if name in _FLOAT_FIELDS:
-                value = float(value)
-            if name in ("levels", "margins", "fit"):
-                value = [float(x) for x in value]
-            if name == "series":
-                value = str(value)
-            values[name] = value
+            meta = fields[name].metadata
+            ok, _, convert = _KINDS[meta["kind"]]
+            if not ok(value) or (meta["count"] and isinstance(value, list) and len(value) not in meta["count"]):
+                raise AnatomeshError(f"[{section}] {key} must be {meta['allowed']}, got {value!r}", source)
+            values[name] = value if convert is None else convert(value)
     if base is not None:
-        for name in PATH_FIELDS:
+        for name in _path_fields(recipe_type):
             if values.get(name):
                 values[name] = _resolve(values[name], Path(base))
-    return Recipe(**values)
+    return recipe_type(**values)
 
 
 def _resolve(value, base: Path):
@@ -427,7 +518,7 @@ def _resolve(value, base: Path):
 
 # ---------------------------------------------------------------------------------------------
 def dump_recipe(recipe: Recipe, base=None) -> str:
-    """The recipe as TOML text (sections as in :data:`SECTIONS`; settings that are None left out).
+    """The recipe as TOML text (sections as in :func:`sections`; settings that are None left out).
 
     With ``base`` (the folder the file will be written to), paths are written relative to it, so
     a folder holding a recipe and its scan can be moved as a whole; :func:`load_recipe` of the
@@ -435,12 +526,12 @@ def dump_recipe(recipe: Recipe, base=None) -> str:
     """
     values = dataclasses.asdict(recipe)
     if base is not None:
-        for name in PATH_FIELDS:
+        for name in _path_fields(type(recipe)):
             if values.get(name):
                 values[name] = _relative(values[name], Path(base))
     lines = ["# Anatomesh recipe: run it with `anatomesh mesh --recipe THIS_FILE`",
              "# (command-line flags override it; relative paths are relative to this file)"]
-    for section, keys in SECTIONS.items():
+    for section, keys in sections(type(recipe)).items():
         body = [f"{key} = {_toml_value(values[name])}" for key, name in keys.items()
                 if values[name] is not None]
         if body:
@@ -478,3 +569,7 @@ def _toml_value(v) -> str:
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     raise AnatomeshError(f"cannot write {type(v).__name__} value {v!r} into a recipe")
+
+
+if __name__ == "__main__":  # python -m anatomesh.app.recipe > table: the docs' settings table
+    print(settings_table(), end="")

@@ -16,13 +16,19 @@ from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_arg
                      short_list, split_list)
 from .web import add_distance_args, margins_arg
 from . import preprocess_args  # --resample, --interpolate, --fuzzy, ...
+from .settings_args import add_setting_args
 
-#: flags that set the Recipe field of the same name as given
-RECIPE_FLAGS = ("series", "volume_index", "label_table", "space", "cap", "keep_largest",
-                "min_component_mm3", "smooth", "iterations", "lam", "mu", "max_deviation",
-                "damping_distance", "staircase", "decimate", "target_faces", "max_error", "check",
-                "profile", "min_wall", "min_gap", "report", "overwrite", "lod", "thicken", "clearance",
-                "grid", "contours", "hollow", "drain_holes", "drain_diameter")
+#: flags made from the recipe's field definitions, set on the Recipe field of the same name as given
+SURFACE_FLAGS = ("contours", "space", "cap", "keep_largest", "min_component_mm3")
+SMOOTHING_FLAGS = ("smooth", "iterations", "lam", "mu", "max_deviation", "damping_distance", "staircase")
+DECIMATION_FLAGS = ("decimate", "target_faces", "max_error", "lod")
+PRINT_FLAGS = ("thicken", "clearance", "check", "profile", "min_wall", "min_gap")
+HOLLOW_FLAGS = ("hollow", "drain_holes", "drain_diameter")
+OUTPUT_FLAGS = ("report", "overwrite")
+#: flags of add_input_args (shared with inspect) that set the Recipe field of the same name
+INPUT_FLAGS = ("series", "volume_index", "label_table", "grid")
+RECIPE_FLAGS = (INPUT_FLAGS + SURFACE_FLAGS + SMOOTHING_FLAGS + DECIMATION_FLAGS + PRINT_FLAGS
+                + HOLLOW_FLAGS + OUTPUT_FLAGS)
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -34,13 +40,12 @@ def add_parser(subs) -> argparse.ArgumentParser:
                                                     "of an earlier run); flags given here override it")
     m.add_argument("--out", help="output folder (required without a recipe)")
     _surface_args(m)
-    _smoothing_args(m)
-    _decimation_args(m)
+    add_setting_args(m, SMOOTHING_FLAGS)
+    add_setting_args(m, DECIMATION_FLAGS)
     _print_args(m)
     add_distance_args(m)  # distance colouring, web page levels
     preprocess_args.add_arguments(m)
-    m.add_argument("--report", help="report path (default OUT/report.json; recipe.toml is written beside it)")
-    m.add_argument("--overwrite", action="store_true", default=None, help="replace existing output files")
+    add_setting_args(m, OUTPUT_FLAGS)
     m.set_defaults(func=cmd_mesh)
     return m
 
@@ -54,76 +59,22 @@ def _surface_args(m) -> None:
                                     "STL object per surface in the source's study, glb one file with every "
                                     "surface, blend a Blender scene, png its Cycles render (need bpy), web a "
                                     "3D page OUT/web/index.html")
-    m.add_argument("--contours", choices=("raster", "tile"),
-                   help="RTSTRUCT contours to surfaces: raster (default: even-odd rasterisation, shape-based "
-                        "interpolation, conforming extraction) or tile (direct tiling between adjacent contours)")
-    m.add_argument("--space", choices=("RAS", "LPS"),
-                   help="coordinate space of the written vertices (default RAS)")
-    m.add_argument("--no-cap", dest="cap", action="store_false", default=None,
-                   help="leave isosurfaces open where they leave the volume (default: capped, closed)")
-    m.add_argument("--keep-largest", action="store_true", default=None,
-                   help="keep only the largest component per surface")
-    m.add_argument("--min-component", dest="min_component_mm3", type=float, metavar="MM3",
-                   help="drop components smaller than this volume in mm³")
-
-
-def _smoothing_args(m) -> None:
-    m.add_argument("--smooth",
-                   help="smoothing preset or filter: organ (default: Taubin kept inside each voxel cell, "
-                        "volumes restored), light, strong, taubin, laplacian, hc, mean_curvature, "
-                        "normal_mean, normal_median, none (raw surface)")
-    m.add_argument("--iterations", type=int, help="smoothing iterations (overrides the preset)")
-    m.add_argument("--lambda", dest="lam", type=float, help="smoothing step λ (overrides the preset)")
-    m.add_argument("--mu", type=float, help="Taubin's negative step μ (overrides the preset)")
-    m.add_argument("--max-deviation", type=float, metavar="MM",
-                   help="no vertex moves further than this from the unsmoothed surface")
-    m.add_argument("--damping-distance", type=float, metavar="MM",
-                   help="smooth less where another structure is closer than this (Mönch et al. 2010)")
-    m.add_argument("--staircase", choices=("auto", "on", "off"),
-                   help="extra slice-axis smoothing for thick slices (auto: slice >= 1.5x in-plane)")
-
-
-def _decimation_args(m) -> None:
-    m.add_argument("--decimate", type=float, metavar="RATIO",
-                   help="after smoothing, keep this fraction of the faces (0.1 = 10 %%); seams stay shared, "
-                        "shells closed; the error in mm is measured and reported")
-    m.add_argument("--target-faces", type=int, metavar="N", help="decimate to N faces in all")
-    m.add_argument("--max-error", type=float, metavar="MM",
-                   help="decimate as far as the surface stays within MM of the smoothed one; with "
-                        "--decimate/--target-faces a cap on their error (default: one voxel)")
-    m.add_argument("--lod", type=int, metavar="N",
-                   help="also write N GLB levels of detail, <scan>_lod0.glb (finest) .. _lod{N-1}.glb, "
-                        "each half the faces of the one before, from one progressive decimation run")
+    add_setting_args(m, SURFACE_FLAGS)
 
 
 def _print_args(m) -> None:
     m.add_argument("--fuse", action="append", metavar="LABELS",
                    help="print fix: merge these labels (comma list of values/names) into one solid "
                         "before extraction; repeat for several groups")
-    m.add_argument("--thicken", action="store_true", default=None,
-                   help="print fix: grow parts thinner than the minimum wall (--min-wall or the "
-                        "profile's) in the label map before extraction")
-    m.add_argument("--clearance", type=float, metavar="MM",
-                   help="print fix: pull touching parts apart by MM along their shared interfaces, "
-                        "so separately printed parts fit together")
     hollow_args(m)
     connector_args(m)
     fit_args(m)  # cut to fit
-    m.add_argument("--check", action="store_true", default=None,
-                   help="run the 3D-print checks on the result (exit code 1 when one fails)")
-    m.add_argument("--profile", choices=("fdm", "resin"), help="printer profile for --check (default fdm)")
-    m.add_argument("--min-wall", type=float, metavar="MM", help="thinnest printable wall (overrides the profile)")
-    m.add_argument("--min-gap", type=float, metavar="MM", help="narrowest gap that stays open (overrides the profile)")
+    add_setting_args(m, PRINT_FLAGS)
 
 
 def hollow_args(m) -> None:
     """``--hollow WALL_MM [--drain-holes N] [--drain-diameter MM]`` (mesh and check)."""
-    m.add_argument("--hollow", type=float, metavar="WALL_MM",
-                   help="print tool (resin/powder): hollow every part to a shell of this wall, with "
-                        "drain holes at its lowest points (+z of the patient is up)")
-    m.add_argument("--drain-holes", type=int, metavar="N", help="drain holes per cavity (default 2)")
-    m.add_argument("--drain-diameter", type=float, metavar="MM",
-                   help="drain hole diameter (default: the profile's, fdm 4 mm, resin 3 mm)")
+    add_setting_args(m, HOLLOW_FLAGS)
 
 
 def fit_args(m) -> None:
