@@ -435,6 +435,16 @@ def _path_fields(recipe_type=Recipe) -> tuple:
 SECTIONS = sections(Recipe)
 
 
+def setting_help(name: str, unset: str = "") -> str:
+    """A Recipe setting's help as a panel shows it (a Blender property's description): what it
+    does, its unit, and what the panel's ``unset`` value means (e.g. "0: the preset's own")."""
+    m = _fields()[name].metadata
+    text = m["help"][:1].upper() + m["help"][1:]
+    if m["unit"] and m["unit"] not in text:
+        text += f", {m['unit']}"
+    return text + (f" ({unset})" if unset else "")
+
+
 def _is_int(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 

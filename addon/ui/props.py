@@ -13,6 +13,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        FloatVectorProperty, IntProperty, PointerProperty, StringProperty)
 from bpy.types import PropertyGroup
 
+from ...app.recipe import setting_help
 from .. import scene
 from ..common import active_scan
 from ..decimation import PREVIEW_MODIFIER, set_preview, uniform_ratios
@@ -50,18 +51,18 @@ def smoothing_properties(update=None) -> dict:
     return dict(
         smooth_method=EnumProperty(name="Method", items=SMOOTH_ITEMS, default="ORGAN", **kw),
         smooth_iterations=IntProperty(name="Iterations", default=0, min=0, soft_max=100, max=1000,
-                                      description="Smoothing passes (0: the method's own)", **kw),
+                                      description=setting_help("iterations", "0: the method's own"), **kw),
         smooth_strength=FloatProperty(name="Strength λ", default=0.0, min=0.0, max=1.0,
-                                      description="Step of each pass (0: the method's own)", **kw),
+                                      description=setting_help("lam", "0: the method's own"), **kw),
         smooth_mu=FloatProperty(name="Taubin μ", default=0.0, min=-1.0, max=0.0,
-                                description="Taubin's negative step (0: the method's own)", **kw),
+                                description=setting_help("mu", "0: the method's own"), **kw),
         smooth_max_deviation=FloatProperty(name="Max deviation", default=0.0, min=0.0, soft_max=5.0,
-                                           unit="LENGTH", description="No vertex moves farther than this "
-                                           "from its extracted position, mm (0: no cap)", **kw),
+                                           unit="LENGTH", description=setting_help("max_deviation", "0: no cap"),
+                                           **kw),
         smooth_damping=FloatProperty(name="Damping distance", default=0.0, min=0.0, soft_max=10.0,
-                                     unit="LENGTH", description="Smooth less where another structure "
-                                     "is closer than this, mm (Mönch et al. 2010; 0: off)", **kw),
-        smooth_staircase=EnumProperty(name="Staircase", items=STAIRCASE_ITEMS, default="AUTO", **kw))
+                                     unit="LENGTH", description=setting_help("damping_distance", "0: off"), **kw),
+        smooth_staircase=EnumProperty(name="Staircase", items=STAIRCASE_ITEMS, default="AUTO",
+                                      description=setting_help("staircase"), **kw))
 
 RENDER_METHOD_ITEMS = (
     ("DITHERED", "Dithered", "Depth-correct transparency for surfaces nested inside each other "
@@ -201,12 +202,11 @@ class ANATOMESH_PG_decimate(PropertyGroup):
 
     target: EnumProperty(name="Target", items=TARGET_ITEMS, default="RATIO", update=_preview_update)
     ratio: FloatProperty(name="Ratio", default=0.1, min=0.001, max=1.0, subtype="FACTOR",
-                         update=_preview_update, description="Fraction of the faces to keep")
+                         update=_preview_update, description=setting_help("decimate"))
     faces: IntProperty(name="Faces", default=50000, min=4, update=_preview_update,
-                       description="Faces to keep, all surfaces of the scan together")
+                       description=setting_help("target_faces"))
     max_error: FloatProperty(name="Max error", default=1.0, min=0.0, soft_max=5.0, unit="LENGTH",
-                             description="Largest distance between the result and the surface "
-                                         "before, mm")
+                             description=setting_help("max_error"))
 
 
 def _profile_changed(self, context):
@@ -231,9 +231,9 @@ class ANATOMESH_PG_print(PropertyGroup):
         ("RESIN", "Resin", "Resin printer: min wall 0.4 mm, min gap 0.2 mm"),
     ], default="FDM", update=_profile_changed)
     min_wall: FloatProperty(name="Min Wall", default=0.8, min=0.01, soft_max=5.0, unit="LENGTH",
-                            description="Thinnest wall the printer makes (mm)")
+                            description=setting_help("min_wall"))
     min_gap: FloatProperty(name="Min Gap", default=0.5, min=0.0, soft_max=5.0, unit="LENGTH",
-                           description="Narrowest gap between parts that stays open (mm)")
+                           description=setting_help("min_gap"))
     selected_only: BoolProperty(name="Selected Only", default=False,
                                 description="Check the selected objects instead of all Anatomesh objects")
     problems: CollectionProperty(type=ANATOMESH_PG_print_problem)
@@ -342,13 +342,13 @@ class ANATOMESH_PG_print_tools(PropertyGroup):
     """The Print panel's tools and the Edit Mode tools' values."""
 
     clearance: FloatProperty(name="Clearance", default=0.2, min=0.001, soft_max=2.0, unit="LENGTH",
-                             description="Gap between touching parts afterwards, mm")
+                             description=setting_help("clearance"))
     hollow_wall: FloatProperty(name="Wall", default=2.0, min=0.1, soft_max=10.0, unit="LENGTH",
-                               description="Hollow: wall thickness left, mm")
+                               description=setting_help("hollow"))
     drain_holes: IntProperty(name="Drain Holes", default=2, min=0, max=16,
-                             description="Hollow: holes per cavity, at its lowest points along +z")
+                             description=setting_help("drain_holes"))
     drain_diameter: FloatProperty(name="Drain Diameter", default=0.0, min=0.0, soft_max=10.0, unit="LENGTH",
-                                  description="Hollow: hole diameter, mm (0: the printer profile's)")
+                                  description=setting_help("drain_diameter", "0: the printer profile's"))
     problem: EnumProperty(name="Problem", default="NON_MANIFOLD", items=PROBLEM_ITEMS)
     hole_edges: IntProperty(name="Max Edges", default=30, min=3, soft_max=500,
                             description="Fill Holes: largest hole, in edges around it")

@@ -103,3 +103,15 @@ def test_print_settings_go_both_ways(empty_scene, recipes, seg_path, tmp_path):
     assert bpy.ops.anatomesh.recipe_save(filepath=str(out)) == {"FINISHED"}
     r = recipes.load_recipe(out)
     assert (r.check, r.profile, r.min_wall, r.min_gap) == (True, "resin", None, pytest.approx(0.35))
+
+
+def test_panel_fields_describe_themselves_with_the_settings_own_help(empty_scene, recipes):
+    """The panels' fields show the help of the setting they fill (one definition, app.recipe)."""
+    help_of = recipes.setting_help
+    rna = lambda group, prop: getattr(empty_scene, group).bl_rna.properties[prop].description
+    assert rna("anatomesh", "smooth_iterations") == help_of("iterations", "0: the method's own")
+    assert rna("anatomesh", "smooth_max_deviation").startswith("No vertex moves further than this")
+    assert rna("anatomesh_decimate", "ratio") == help_of("decimate")
+    assert rna("anatomesh_decimate", "max_error") == help_of("max_error")
+    assert rna("anatomesh_print", "min_wall") == help_of("min_wall")
+    assert rna("anatomesh_print_tools", "drain_diameter") == help_of("drain_diameter", "0: the printer profile's")
