@@ -28,7 +28,7 @@ import numpy as np
 
 from ..core.decimate.qem import decimate_surfaces
 from ..core.geometry.pinches import pinch_gap_mm, separate_shells
-from ..core.geometry.topology import component_measures
+from ..core.geometry.topology import component_sizes
 from ..core.model.errors import AnatomeshError
 from ..core.model.labels import LabelInfo, select_labels
 from ..core.model.mesh import Mesh, compact
@@ -224,22 +224,23 @@ def clean(m: Mesh, recipe: Recipe, voxel_mm3: float = 0.0) -> Dict:
     ``voxel_mm3``) and what keep-largest / min-component ask; returns the report's entries:
     ``dropped_components`` (volume, area, faces, why) and ``small_components_mm3`` (the kept
     components under :data:`SMALL_COMPONENT_MM3`, mm³)."""
-    dropped, small = [], []
     if not m.n_faces:
-        return {"dropped_components": dropped, "small_components_mm3": small}
-    keep = []
-    for i, c in enumerate(component_measures(m.vertices, m.faces)):
-        size = abs(c["volume_mm3"])
-        why = ("speck" if size < SPECK_VOXELS * voxel_mm3 else "keep_largest" if recipe.keep_largest and i > 0
-               else "min_component" if size < recipe.min_component_mm3 else None)
-        if why:
-            dropped.append({"volume_mm3": round(c["volume_mm3"], 6), "area_mm2": round(c["area_mm2"], 3),
-                            "faces": int(len(c["faces"])), "why": why})
-        else:
-            keep.append(c["faces"])
-            small += [round(size, 4)] if size < SMALL_COMPONENT_MM3 else []
+        return {"dropped_components": [], "small_components_mm3": []}
+    lab, volumes, areas = component_sizes(m.vertices, m.faces)
+    size = np.abs(volumes)
+    why = np.full(size.size, "", object)
+    why[size < recipe.min_component_mm3] = "min_component"
+    if recipe.keep_largest:
+        why[np.arange(size.size) != np.argmax(size)] = "keep_largest"
+    why[size < SPECK_VOXELS * voxel_mm3] = "speck"
+    drop = why != ""
+    order = np.argsort(-size, kind="stable")
+    counts = np.bincount(lab, minlength=size.size)
+    dropped = [{"volume_mm3": round(float(volumes[c]), 6), "area_mm2": round(float(areas[c]), 3),
+                "faces": int(counts[c]), "why": str(why[c])} for c in order if drop[c]]
+    small = [round(float(size[c]), 4) for c in order if not drop[c] and size[c] < SMALL_COMPONENT_MM3]
     if dropped:
-        faces = m.faces[np.sort(np.concatenate(keep))] if keep else m.faces[:0]
+        faces = m.faces[~drop[lab]]
         m.vertices, m.faces, m.normals, used = compact(m.vertices, faces, m.normals)
         if m.meta.get("vertex_ids") is not None:  # index into the SurfaceSet stays valid
             m.meta["vertex_ids"] = np.asarray(m.meta["vertex_ids"])[used]

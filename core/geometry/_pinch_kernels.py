@@ -7,18 +7,21 @@ side ``s``; ``cur`` (P, 3, 2, 3) holds every slot's current position, so each pi
 drawn as each of its two sides' shells show it. An *instance* is one fan of one label at one
 pinch vertex (label, vertex, copy); a *group* is a set of instances tied by the faces they
 share. ``fans`` is the tuple ``(inst_slots, s_off, g_members, g_off)``: each instance's slots
-and each group's instances (CSR). ``near`` is the tuple ``(pos, cand, cand_pinch, keys, grid,
-real)``: the set positions; the candidate faces ``cand`` (Q, 3) int64 (a face once for every
-cell near a pinch vertex that its bounding box meets), their pinch face number or -1, and those
-cells' keys, ascending (:func:`cell_key`); ``grid`` (5,) float64 the cells' origin (3), size
-and the key's base; and which sides (P, 2) of the pinch faces are a shell's (not the
-background's). A cell is at least the longest edge of a pinch face plus twice the gap, so a fan,
-moved or not, lies in the 27 cells around its vertex's.
+and each group's instances (CSR). ``near`` is the tuple ``(pos, cand, cand_pinch, cell_keys,
+cell_off, grid, real, cand_box)``: the set positions; the candidate faces ``cand`` (Q, 3) int64
+(a face once for every cell near a pinch vertex that its bounding box meets), sorted by cell,
+and their pinch face number or -1; the cells that hold candidates, by key, ascending
+(:func:`cell_key`), with their candidates' offsets (C + 1,); ``grid`` (5,) float64 the cells' origin (3), size
+and the key's base; which sides (P, 2) of the pinch faces are a shell's (not the
+background's); and the candidate faces' bounding boxes (Q, 6) (:func:`face_boxes`), read in
+order, so a candidate's corners are fetched only when its box meets a fan's. A cell is at least
+the longest edge of a pinch face plus twice the gap, so a fan, moved or not, lies in the 27
+cells around its vertex's.
 """
 import numpy as np
 from numba import njit
 
-from .kernels import tri_tri_intersect
+from ._face_pair_kernels import tri_tri
 
 #: directions tried per move: two computed ones, then the 26 from a cube cell to its neighbours
 _TRIES = 2 + 26
@@ -206,40 +209,45 @@ def _clear(cur, mine, fans, near, rel_eps):
     as their shells' sides show them, the others at the set positions (faces with a corner at
     the same position are not tested: they touch there)."""
     inst_slots, s_off = fans[0], fans[1]
-    pos, cand, cand_pinch, keys, grid, real = near
+    pos, cand, cand_pinch, cell_keys, cell_off, grid, real, cand_box = near
     box = _fan_box(cur, mine, fans)
     lo = cell_of(box[0, 0], box[0, 1], box[0, 2], grid)
     hi = cell_of(box[1, 0], box[1, 1], box[1, 2], grid)
     other = np.empty((3, 3))
+    scratch = np.empty((6, 3))
     for i in range(lo[0], hi[0] + 1):
         for j in range(lo[1], hi[1] + 1):
             for k in range(lo[2], hi[2] + 1):
                 key = cell_key(i, j, k, grid)
-                a = np.searchsorted(keys, key)
-                while a < keys.shape[0] and keys[a] == key:
-                    q, r = a, cand_pinch[a]
-                    a += 1
+                c = np.searchsorted(cell_keys, key)
+                if c == cell_keys.shape[0] or cell_keys[c] != key:
+                    continue
+                for q in range(cell_off[c], cell_off[c + 1]):
+                    r = cand_pinch[q]
                     if r >= 0:
                         for t in range(2):
                             if real[r, t] and _box_meets(cur[r, :, t], box) and \
-                                    not _apart(cur, mine, fans, cur[r, :, t], r, rel_eps):
+                                    not _apart(cur, mine, fans, cur[r, :, t], r, rel_eps, scratch):
                                 return False
                         continue
-                    for c in range(3):
-                        other[c] = pos[cand[q, c]]
-                    if _box_meets(other, box) and not _apart(cur, mine, fans, other, -1, rel_eps):
+                    if not _stored_box_meets(cand_box, q, box):  # no positions read (memory)
+                        continue
+                    for e in range(3):
+                        other[e] = pos[cand[q, e]]
+                    if not _apart(cur, mine, fans, other, -1, rel_eps, scratch):
                         return False
     return True
 
 
 @njit(cache=True)
-def _apart(cur, mine, fans, tri, face, rel_eps):
-    """No face of ``mine`` (but pinch face ``face`` itself) crosses ``tri`` (3, 3)."""
+def _apart(cur, mine, fans, tri, face, rel_eps, scratch):
+    """No face of ``mine`` (but pinch face ``face`` itself) crosses ``tri`` (3, 3); ``scratch``
+    (6, 3) float64 is work space."""
     inst_slots, s_off = fans[0], fans[1]
     for i in mine:
         for b in range(s_off[i], s_off[i + 1]):
             p, _, s = _unslot(inst_slots[b])
-            if p != face and _boxes_meet(cur[p, :, s], tri) and _crosses(cur[p, :, s], tri, rel_eps):
+            if p != face and _boxes_meet(cur[p, :, s], tri) and _crosses(cur[p, :, s], tri, rel_eps, scratch):
                 return False
     return True
 
@@ -281,6 +289,25 @@ def _box_meets(tri, box):
     return True
 
 
+@njit(cache=True, inline="always")
+def _stored_box_meets(boxes, q, box):
+    """Does the bounding box ``boxes[q]`` (lo (3), hi (3)) meet ``box`` (2, 3) (closed)?"""
+    for j in range(3):
+        if boxes[q, 3 + j] < box[0, j] or boxes[q, j] > box[1, j]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def face_boxes(pos, faces, out):
+    """The bounding box of every face (M, 3) into ``out`` (M, 6): lo (3) then hi (3)."""
+    for f in range(faces.shape[0]):
+        for j in range(3):
+            a, b, c = pos[faces[f, 0], j], pos[faces[f, 1], j], pos[faces[f, 2], j]
+            out[f, j] = min(a, b, c)
+            out[f, 3 + j] = max(a, b, c)
+
+
 @njit(cache=True)
 def cell_of(x, y, z, grid):
     """The integer cell ``(i, j, k)`` of the point (x, y, z) mm in ``grid`` (origin (3), size,
@@ -319,13 +346,17 @@ def candidate_cells(pos, faces, grid, near, out_face, out_key):
 
 
 @njit(cache=True)
-def _crosses(a, b, rel_eps):
-    """Do triangles ``a`` and ``b`` ((3, 3) corners) cross, sharing no corner position?"""
+def _crosses(a, b, rel_eps, scratch):
+    """Do triangles ``a`` and ``b`` ((3, 3) corners) cross, sharing no corner position? Möller's
+    test on scalars (:func:`._face_pair_kernels.tri_tri`, the arithmetic of
+    ``kernels.tri_tri_intersect``) over the corners copied into ``scratch`` (6, 3)."""
     for i in range(3):
         for j in range(3):
             if a[i, 0] == b[j, 0] and a[i, 1] == b[j, 1] and a[i, 2] == b[j, 2]:
                 return False
-    return tri_tri_intersect(a[0], a[1], a[2], b[0], b[1], b[2], rel_eps)
+    scratch[:3] = a
+    scratch[3:] = b
+    return tri_tri(scratch, 0, 1, 2, 3, 4, 5, rel_eps)
 
 
 @njit(cache=True)

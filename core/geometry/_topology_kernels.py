@@ -182,3 +182,27 @@ def weld_positions(bits, ids):
                 break
             slot = (slot + 1) & (size - 1)
     return distinct
+
+
+@njit(cache=True)
+def component_sums(pos, faces, labels, n, volumes, areas):
+    """Per component (``labels`` (M,) of the faces, ``n`` components): the signed volume (n,)
+    (divergence theorem, about the first corner of the component's first face, so large
+    coordinates lose no precision) and the area (n,), into ``volumes`` and ``areas`` (float64,
+    zeroed here). One pass over the faces."""
+    ref = np.full(n, -1, np.int64)
+    volumes[:] = 0.0
+    areas[:] = 0.0
+    for f in range(faces.shape[0]):
+        c = labels[f]
+        if ref[c] < 0:
+            ref[c] = faces[f, 0]
+        r = ref[c]
+        ax, ay, az = pos[faces[f, 0], 0] - pos[r, 0], pos[faces[f, 0], 1] - pos[r, 1], pos[faces[f, 0], 2] - pos[r, 2]
+        bx, by, bz = pos[faces[f, 1], 0] - pos[r, 0], pos[faces[f, 1], 1] - pos[r, 1], pos[faces[f, 1], 2] - pos[r, 2]
+        cx, cy, cz = pos[faces[f, 2], 0] - pos[r, 0], pos[faces[f, 2], 1] - pos[r, 1], pos[faces[f, 2], 2] - pos[r, 2]
+        volumes[c] += (ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)) / 6.0
+        ux, uy, uz = bx - ax, by - ay, bz - az
+        vx, vy, vz = cx - ax, cy - ay, cz - az
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        areas[c] += 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)

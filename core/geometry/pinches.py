@@ -208,7 +208,12 @@ def _near_faces(surfaces, pf: np.ndarray, gap_mm: float):
     at = np.minimum(np.searchsorted(pf, face), pf.size - 1)
     cand_pinch = np.where(pf[at] == face, at, -1).astype(np.int64)
     real = surfaces.face_labels[pf] != surfaces.background
-    return (pos, np.ascontiguousarray(surfaces.faces[face], np.int64), cand_pinch, key, grid, real)
+    cand = np.ascontiguousarray(surfaces.faces[face], np.int64)
+    boxes = np.empty((cand.shape[0], 6), pos.dtype)
+    _k.face_boxes(pos, cand, boxes)
+    cell_keys, starts = np.unique(key, return_index=True)
+    cell_off = np.append(starts, key.size).astype(np.int64)
+    return (pos, cand, cand_pinch, cell_keys, cell_off, grid, real, boxes)
 
 
 def _longest_edge(pos: np.ndarray, faces: np.ndarray) -> float:

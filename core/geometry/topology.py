@@ -214,23 +214,28 @@ def nonmanifold_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.flatnonzero(_neighbors_kernels.fan_counts(f, vf_offsets, vf) > 1).astype(np.int64)
 
 
+def component_sizes(vertices: np.ndarray, faces: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per connected component (:func:`face_components`): ``(labels (M,) int64 of the faces,
+    volume (C,) mm³ by the divergence theorem, positive for outward faces, area (C,) mm²)``, in
+    one pass over the faces. Each component's volume is taken about one of its own vertices, so
+    large patient coordinates lose no precision."""
+    f = _index_array(faces)
+    n, lab = face_components(f, len(vertices))
+    volumes, areas = np.zeros(n), np.zeros(n)
+    if n:
+        _topology_kernels.component_sums(np.ascontiguousarray(vertices), f, lab, n, volumes, areas)
+    return lab, volumes, areas
+
+
 def component_measures(vertices: np.ndarray, faces: np.ndarray) -> List[Dict]:
     """Per connected component: faces, area (mm²), volume (mm³), sorted by volume descending.
 
     Each entry is ``{"faces": index array, "area_mm2": float, "volume_mm3": float}``.
     """
-    f = np.asarray(faces, np.int64)
-    n, lab = face_components(f, len(vertices))
-    if n == 0:
-        return []
-    v = np.asarray(vertices, np.float64)
-    _, first = np.unique(lab, return_index=True)
-    ref = v[f[first, 0]][lab]  # each component's volume about one of its vertices (precision)
-    a, b, c = v[f[:, 0]] - ref, v[f[:, 1]] - ref, v[f[:, 2]] - ref
-    volumes = np.bincount(lab, np.einsum("ij,ij->i", a, np.cross(b, c)), minlength=n) / 6.0
-    areas = np.bincount(lab, face_areas(v, f), minlength=n)
+    lab, volumes, areas = component_sizes(vertices, faces)
+    n = volumes.size
     order = np.argsort(lab, kind="stable")
-    groups = np.split(order, np.cumsum(np.bincount(lab, minlength=n))[:-1])
+    groups = np.split(order, np.cumsum(np.bincount(lab, minlength=n))[:-1]) if n else []
     out = [{"faces": groups[c], "area_mm2": float(areas[c]), "volume_mm3": float(volumes[c])}
            for c in range(n)]
     out.sort(key=lambda d: -abs(d["volume_mm3"]))
