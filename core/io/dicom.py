@@ -231,11 +231,11 @@ def _header_of(path: Path, tolerant: bool):
 
 
 def _convert_values(ds) -> None:
-    """Convert the top-level values (not sequences) now, while pydicom's complaints about them can
-    still be said to be about this file; a value pydicom cannot convert is left as it is (it is an
-    error only if it is ever used)."""
+    """Convert the top-level values (not sequences, not private elements: nothing here reads
+    them) now, while pydicom's complaints about them can still be said to be about this file; a
+    value pydicom cannot convert is left as it is (it is an error only if it is ever used)."""
     for tag in list(ds.keys()):
-        if getattr(ds.get_item(tag), "VR", None) == "SQ":
+        if tag.is_private or getattr(ds.get_item(tag), "VR", None) == "SQ":
             continue
         try:
             ds[tag]
