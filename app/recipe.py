@@ -339,57 +339,6 @@ def check_recipe(recipe: Recipe) -> None:
     check_preprocess(recipe)  # preprocessing
 
 
-def check_recipe(recipe: Recipe) -> None:
-    """Raise :class:`AnatomeshError` (one line, naming the setting) for a setting out of range;
-    reads no input file. Normalises ``recipe`` in place (format names, fit, margins): a run
-    checks its own copy."""
-    if not recipe.input:
-        raise AnatomeshError("no input scan: give a path (or input.path in a recipe)")
-    if recipe.smooth != SMOOTH_NONE:
-        from ..core.smooth.presets import check_settings
-
-        check_settings(recipe.smooth, **recipe.smoothing_overrides())
-    recipe.formats = [str(f).strip().lower().lstrip(".") for f in recipe.formats]
-    bad = [f for f in recipe.formats if f not in FORMATS]
-    if bad or not recipe.formats:
-        raise AnatomeshError(f"unknown --format {','.join(bad) or '(none)'}; use a comma list of "
-                             f"{', '.join(FORMATS)}")
-    for name, value, allowed in (("space", recipe.space, SPACES), ("staircase", recipe.staircase, STAIRCASE),
-                                 ("profile", recipe.profile, PROFILES), ("contours", recipe.contours, CONTOURS)):
-        if value not in allowed:
-            raise AnatomeshError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
-    if not (isinstance(recipe.lod, int) and 0 <= recipe.lod <= 8):
-        raise AnatomeshError(f"--lod is the number of GLB levels of detail, 0..8, got {recipe.lod!r}")
-    if recipe.decimate is not None and recipe.target_faces is not None:
-        raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
-                             "may come with either as a cap on the error)")
-    if recipe.decimate is not None and not 0.0 < recipe.decimate <= 1.0:
-        raise AnatomeshError(f"--decimate is the fraction of faces kept, in (0, 1], got {recipe.decimate}")
-    if recipe.target_faces is not None and (int(recipe.target_faces) != recipe.target_faces
-                                            or recipe.target_faces < 4):
-        raise AnatomeshError(f"--target-faces must be a whole number >= 4, got {recipe.target_faces}")
-    if not isinstance(recipe.fuse, list) or not all(isinstance(g, list) for g in recipe.fuse):
-        raise AnatomeshError(f"fuse must be a list of label groups (lists of values or names), got {recipe.fuse!r}")
-    for name in ("max_error", "min_wall", "min_gap", "max_deviation", "damping_distance", "clearance",
-                 "hollow", "drain_diameter"):
-        value = getattr(recipe, name)
-        if value is not None and not value > 0:
-            raise AnatomeshError(f"--{name.replace('_', '-')} is a distance in mm and must be > 0, got {value}")
-    if not (isinstance(recipe.drain_holes, int) and 0 <= recipe.drain_holes <= 16):
-        raise AnatomeshError(f"--drain-holes is a count of holes per cavity, 0..16, got {recipe.drain_holes!r}")
-    recipe.fit = check_fit(recipe.fit)  # cut to fit
-    if recipe.render_samples < 1 or len(recipe.render_size) != 2 or min(recipe.render_size) < 16:
-        raise AnatomeshError("render_samples must be >= 1 and render_size two pixel counts >= 16")
-    # distance colouring and the web page
-    from ..core.geometry.margins import check_margins  # speed: numba's kernels load on use
-
-    recipe.margins = list(check_margins(recipe.margins))
-    if not (isinstance(recipe.web_levels, int) and 1 <= recipe.web_levels <= 4):
-        raise AnatomeshError(f"--web-levels is the number of levels of detail of the page, 1..4, "
-                             f"got {recipe.web_levels!r}")
-    check_preprocess(recipe)  # preprocessing
-
-
 #: the order of a recipe file's sections, each with a comment written above it
 _NOTES = {
     "input": "scan, label map, mask folder, DICOM SEG/RTSTRUCT; labels: \"all\" or values/names; levels: "
