@@ -63,9 +63,20 @@ def entry() -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
+    p.add_argument("--version", action="version", version=f"anatomesh {installed_version()}")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     subs = p.add_subparsers(dest="command")
     for command in (inspect, mesh, check, web, batch, preview):
         sp = command.add_parser(subs)
         sp.add_argument("--debug", action="store_true", help=argparse.SUPPRESS)
     return p
+
+
+def installed_version() -> str:
+    """The installed package's version (its metadata), or a word saying it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("anatomesh")
+    except PackageNotFoundError:
+        return "(not installed: run from a checkout)"

@@ -262,3 +262,14 @@ def test_mesh_bad_recipe_is_one_line_exit_2(capsys, tmp_path, text, words):
 def test_mesh_needs_an_output_folder(capsys):
     code, _, err = run(capsys, "mesh", SEG)
     assert code == 2 and "--out" in err
+
+
+def test_version_is_the_package_version(capsys):
+    import tomllib
+    from pathlib import Path
+
+    want = tomllib.loads((Path(__file__).resolve().parents[2] / "pyproject.toml").read_text())["project"]["version"]
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"anatomesh {want}"
