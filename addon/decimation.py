@@ -7,7 +7,7 @@ from typing import Dict, List, Optional
 import numpy as np
 
 from . import bridge, live, scene
-from .reassemble import surface_set_from_objects
+from .reassemble import object_affine, surface_set_from_objects
 
 
 #: name of the preview modifier on each surface object
@@ -103,16 +103,10 @@ def decimated(objs, recipe, progress=None, sets: Optional[List] = None):
             yield o, m, out.vertices[m.meta["vertex_ids"]], rep["shells"][stages.value_key(value)]
     for o in objs:
         if o not in shared:
-            one = SurfaceSet.from_meshes([Mesh(*bridge.arrays(o.data))], _affine(o))
+            one = SurfaceSet.from_meshes([Mesh(*bridge.arrays(o.data))], object_affine(o))
             out, rep = stages.decimate(one, recipe, stages.one_voxel(one))
             (measures,) = rep["shells"].values()
             yield o, out.shells()[0], None, measures
-
-
-def _affine(obj) -> np.ndarray:
-    """The voxel-to-mm affine the object was extracted with (identity when it has none)."""
-    aff = obj.get("anatomesh_affine")
-    return np.asarray(list(aff), np.float64).reshape(4, 4) if aff is not None and len(aff) == 16 else np.eye(4)
 
 
 def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:

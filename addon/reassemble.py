@@ -68,9 +68,14 @@ def surface_set_from_objects(objects, rest: bool = False) -> Tuple[object, List]
         rows[:, 2] = np.argmax(faces[fi] == vals[:, None], axis=1)
         rows[:, 3] = copy[occ, corner_in_occ]
         rows = rows[np.argsort(rows[:, 0], kind="stable")]
-    aff = objects[0].get("anatomesh_affine") if objects else None
-    affine = np.asarray(list(aff), np.float64).reshape(4, 4) if aff is not None and len(aff) == 16 \
-        else np.eye(4)
+    affine = object_affine(objects[0]) if objects else np.eye(4)
     ss = SurfaceSet(verts, faces, np.c_[inside, outside], None, affine,
                     space=str(objects[0].get("anatomesh_space", "RAS")), splits=rows, background=0)
     return ss, [o for o, _, _, _ in parts]
+
+
+def object_affine(obj) -> np.ndarray:
+    """The voxel-to-mm affine (4, 4) an object was extracted with (``anatomesh_affine``), or the
+    identity when it has none."""
+    aff = obj.get("anatomesh_affine")
+    return np.asarray(list(aff), np.float64).reshape(4, 4) if aff is not None and len(aff) == 16 else np.eye(4)
