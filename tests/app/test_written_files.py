@@ -16,11 +16,10 @@ import subprocess
 
 import numpy as np
 import pytest
+import trimesh
 
 from anatomesh.app.cli import main as cli_main
 from conftest import shared
-
-trimesh = pytest.importorskip("trimesh")
 
 LABELS61 = ("totalsegmentator", "example_seg_fast_force_split.nii.gz")
 ADMESH = shutil.which("admesh")
@@ -150,7 +149,6 @@ def test_labels61_stl_ply_obj_glb_read_back_closed_manifold_with_the_reported_co
 
 
 def test_labels61_3mf_read_back_closed_manifold_with_the_reported_components(labels61):
-    pytest.importorskip("lxml", reason="trimesh reads 3MF with lxml (pip install lxml)")
     out, rep = labels61
     bad, reads = mismatches(out, rep, ("3mf",))
     assert reads == 61 * 2  # one 3MF per surface and the combined one
