@@ -53,7 +53,6 @@ Timings are noisy on a shared 2-core machine.
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import os
 import re
@@ -69,6 +68,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("ANATOMESH_SHARED_DATA", REPO.parent / "shared" / "data"))
 sys.path.insert(0, str(REPO / "tests"))
+from helpers.readback import mesh_facts, read_back  # noqa: E402  (tests/ on the path)
 
 FORMATS = "stl,ply,obj,3mf,glb"
 
@@ -139,64 +139,6 @@ def mesh_command(path, extra, out, formats):
 
 # reading back -------------------------------------------------------------------------------
 
-def by_position(mesh):
-    """The mesh with vertices joined by position only (normals and UVs ignored)."""
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    return mesh
-
-
-def load_meshes(path, fmt):
-    """``{geometry name: trimesh.Trimesh}`` of one written file, as trimesh reads it."""
-    import trimesh
-
-    if fmt == "dicom":
-        import pydicom
-
-        ds = pydicom.dcmread(str(path))
-        doc = bytes(ds.EncapsulatedDocument)
-        n = ds.get("EncapsulatedDocumentLength")
-        data = io.BytesIO(doc[:n] if n else doc)
-        return {"": by_position(trimesh.load(data, file_type="stl", force="mesh", process=True))}
-    if fmt in ("3mf", "glb"):
-        scene = trimesh.load(str(path), process=True)
-        if isinstance(scene, trimesh.Trimesh):
-            return {"": by_position(scene)}
-        return {name: by_position(g) for name, g in scene.geometry.items()}
-    return {"": by_position(trimesh.load(str(path), force="mesh", process=True))}
-
-
-def read_facts(mesh):
-    """``(closed, 2-manifold, components)`` of a trimesh mesh (see the module docstring)."""
-    import trimesh
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    f = np.asarray(mesh.faces, np.int64)
-    if len(f) == 0:
-        return False, False, 0
-    nv = np.int64(len(mesh.vertices))
-    es = np.asarray(mesh.edges_sorted, np.int64)
-    _, counts = np.unique(es[:, 0] * nv + es[:, 1], return_counts=True)
-    closed = bool(np.all(counts >= 2))
-    adj = np.asarray(mesh.face_adjacency, np.int64).reshape(-1, 2)
-    comps = len(trimesh.graph.connected_components(adj, nodes=np.arange(len(f))))
-    # one fan per vertex: corners (face, vertex) joined across each shared edge at both its ends
-    edges = np.asarray(mesh.face_adjacency_edges, np.int64).reshape(-1, 2)
-    a, b = [], []
-    for end in (0, 1):
-        v = edges[:, end]
-        ka = np.argmax(f[adj[:, 0]] == v[:, None], axis=1)
-        kb = np.argmax(f[adj[:, 1]] == v[:, None], axis=1)
-        a.append(adj[:, 0] * 3 + ka)
-        b.append(adj[:, 1] * 3 + kb)
-    a, b = np.concatenate(a), np.concatenate(b)
-    n = 3 * len(f)
-    _, lab = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
-    fans = len(np.unique(f.ravel() * np.int64(n) + lab))
-    manifold = bool(np.all(counts <= 2)) and fans == len(np.unique(f))
-    return closed, manifold, comps
-
-
 def admesh_facts(path):
     """admesh's reading of an STL: parts, disconnected, degenerate facets, backwards edges.
     (``helpers.readback.admesh_facts`` decodes admesh's output strictly as UTF-8 and fails on the
@@ -252,9 +194,9 @@ def bench_input(name, rel, extra, dicom, out_root):
     # per-surface files
     for s in surfaces:
         for fmt, fn in s["files"].items():
-            read = load_meshes(d / fn, fmt)
+            read = read_back(d / fn, fmt)
             for gname, m in read.items():
-                c, mf, k = read_facts(m)
+                c, mf, k = mesh_facts(m)
                 reads += 1
                 clo += c
                 man += mf
@@ -279,13 +221,13 @@ def bench_input(name, rel, extra, dicom, out_root):
         fn = rep["files"].get(fmt)
         if not fn:
             continue
-        geoms = load_meshes(d / fn, fmt)
+        geoms = read_back(d / fn, fmt)
         names = list(geoms)
         if len(geoms) != len(surfaces):
             det.append(f"{fn}: {len(geoms)} geometries for {len(surfaces)} surfaces")
         for i, (gname, m) in enumerate(geoms.items()):
             s = by_name.get(gname) or (surfaces[i] if i < len(surfaces) else None)
-            c, mf, k = read_facts(m)
+            c, mf, k = mesh_facts(m)
             reads += 1
             clo += c
             man += mf

@@ -64,3 +64,55 @@ def admesh_facts(path):
         return int(m.group(1))
     return {"parts": number("Number of parts"), "disconnected": number("Total disconnected facets"),
             "degenerate": number("Degenerate facets"), "backwards": number("Backwards edges")}
+
+def by_position(m):
+    """Vertices joined by position only (normals and UVs ignored), as STL readers do."""
+    m.merge_vertices(merge_tex=True, merge_norm=True)
+    return m
+
+
+def read_back(path, fmt):
+    """``{geometry name: trimesh.Trimesh}`` of one written file, as trimesh reads it."""
+    import trimesh
+
+    if fmt == "dicom":
+        import io
+
+        import pydicom
+
+        ds = pydicom.dcmread(str(path))
+        assert ds.MIMETypeOfEncapsulatedDocument == "model/stl"
+        doc = bytes(ds.EncapsulatedDocument)
+        n = ds.get("EncapsulatedDocumentLength")
+        data = io.BytesIO(doc[:n] if n else doc)
+        return {"": by_position(trimesh.load(data, file_type="stl", force="mesh", process=True))}
+    if fmt in ("3mf", "glb"):
+        scene = trimesh.load(str(path), process=True)
+        if isinstance(scene, trimesh.Trimesh):
+            return {"": by_position(scene)}
+        return {name: by_position(g) for name, g in scene.geometry.items()}
+    return {"": by_position(trimesh.load(str(path), force="mesh", process=True))}
+
+
+def mesh_facts(m):
+    """``(closed, 2-manifold, components)`` of a mesh as read: every edge in >= 2 / <= 2 faces,
+    every vertex's faces one fan; face-connected components (trimesh's face adjacency)."""
+    import trimesh
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = np.asarray(m.faces, np.int64)
+    if len(f) == 0:
+        return False, False, 0
+    es = np.asarray(m.edges_sorted, np.int64)
+    _, counts = np.unique(es[:, 0] * len(m.vertices) + es[:, 1], return_counts=True)
+    adj = np.asarray(m.face_adjacency, np.int64).reshape(-1, 2)
+    comps = len(trimesh.graph.connected_components(adj, nodes=np.arange(len(f))))
+    # corners (face, vertex) joined across each shared edge at both its ends: one fan per vertex
+    edges = np.asarray(m.face_adjacency_edges, np.int64).reshape(-1, 2)
+    a = [adj[:, 0] * 3 + np.argmax(f[adj[:, 0]] == edges[:, e, None], axis=1) for e in (0, 1)]
+    b = [adj[:, 1] * 3 + np.argmax(f[adj[:, 1]] == edges[:, e, None], axis=1) for e in (0, 1)]
+    a, b, n = np.concatenate(a), np.concatenate(b), 3 * len(f)
+    _, lab = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    fans = len(np.unique(f.ravel() * n + lab))
+    return bool(np.all(counts >= 2)), bool(np.all(counts <= 2)) and fans == len(np.unique(f)), comps
