@@ -1,19 +1,22 @@
 """The Blender side of Anatomesh: the only package that imports ``bpy``.
 
-Thin by design: ``ui/`` holds the settings (property groups) and draws the sidebar tab,
-``operators/`` read the settings and call the same app/core stage functions as the command line,
-``scan`` adds a scan's surfaces to the scene, ``bridge`` moves arrays in and out of Blender
-meshes, ``scene`` makes collections, objects and materials, ``live`` re-smooths while a slider
-moves, ``headless`` builds scenes for ``blender -b`` and the CLI's ``.blend``/PNG outputs.
-Registering does no heavy work: on a first run the numba kernels compile in a background process
-(``warmup``), so Blender never freezes.
+Thin by design, in rooms: ``scene/`` moves arrays in and out of Blender meshes (``bridge``) and
+makes collections, objects and materials; ``operators/`` holds each ``<feature>_ops.py`` (the
+operators, reading the settings) beside its ``<feature>.py``, which calls the same app/core stage
+functions as the command line (extraction, live smoothing, decimation, print tools, export);
+``ui/`` holds the settings as property groups and draws the sidebar tab; ``headless`` builds
+scenes for ``blender -b`` and the CLI's ``.blend``/PNG outputs. Registering does no heavy work:
+on a first run the numba kernels compile in a background process (``operators/warmup``), so
+Blender never freezes.
 """
 from __future__ import annotations
 
 import bpy
 
-from ..app.outputs import register_blender_writer
-from . import common, headless, live, operators, warmup
+from ..app.flow.outputs import register_blender_writer
+from .operators import common, smooth as live
+from . import headless, operators
+from .operators import warmup
 from .ui import panels, props
 
 CLASSES = props.CLASSES + operators.CLASSES + panels.CLASSES

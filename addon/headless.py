@@ -2,7 +2,7 @@
 
 ``anatomesh mesh --format blend,png`` ends here (the only place the command line reaches
 Blender): :func:`write_blend` starts an empty file, adds the surfaces through the very function
-the Extract button uses (:func:`anatomesh.addon.operators.scan.scan_to_scene`: one collection named
+the Extract button uses (:func:`anatomesh.addon.operators.scan_ops.scan_to_scene`: one collection named
 after the scan, one object per label or level named after it, its material and colour, the custom
 properties, the live-smoothing cache), frames a camera from the patient's front, lights the scene
 and saves it; with ``render_png`` it also renders the view with Cycles on the CPU.
@@ -22,7 +22,8 @@ from typing import Optional, Sequence, Tuple
 
 import bpy
 
-from . import live, scan, scene
+from .operators import smooth as live, scan
+from .scene import objects as scene
 
 #: organs made see-through in the picture (name contains one of these), with their opacity
 SEE_THROUGH = ("lung",)
@@ -42,7 +43,7 @@ def ensure_registered() -> None:
 def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple[int, int] = (960, 540),
                 elevation: float = 30.0, azimuth: float = -25.0,
                 see_through: Sequence[str] = SEE_THROUGH) -> Optional[Path]:
-    """Build the scene of a :class:`~anatomesh.app.run.Result` and save it as ``path``.
+    """Build the scene of a :class:`~anatomesh.app.flow.result.Result` and save it as ``path``.
 
     Parameters
     ----------
@@ -99,7 +100,7 @@ def result_to_scene(context, result) -> bpy.types.Collection:
     live.set_scan_settings(coll, smooth_method="NONE")
     recipe = getattr(result, "recipe", None)
     if recipe is not None:
-        from ..app.recipe import dump_recipe
+        from ..app.flow.recipe import dump_recipe
 
         coll["anatomesh_recipe"] = dump_recipe(recipe)
     return coll

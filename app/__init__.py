@@ -1,4 +1,4 @@
-"""The application: the recipe every door fills (:mod:`.recipe`), the stage functions
-(:mod:`.stages`), the one flow that chains them (:mod:`.run`), its files (:mod:`.outputs`) and
-report (:mod:`.report`), the check flow for mesh files (:mod:`.check`) and the command line
-(:mod:`.cli`). Imports core, never the add-on."""
+"""The application, in rooms: :mod:`.flow` (the recipe every door fills, the stage functions, the
+one chain of them, a run's files and report), :mod:`.cli` (the command line), :mod:`.batch`
+(cohorts), :mod:`.web` (the 3D page), :mod:`.pictures` and :mod:`.warmup` (compiling the kernels
+once). Imports core, never the add-on."""

@@ -52,8 +52,8 @@ def make_studies(folder: Path, copies: int) -> int:
 def child(config: str, studies: Path, out: Path) -> dict:
     """One configuration in this (fresh) process; returns its measures."""
     from anatomesh.app import batch
-    from anatomesh.app.recipe import Recipe
-    from anatomesh.app.run import run
+    from anatomesh.app.flow.recipe import Recipe
+    from anatomesh.app.flow.run import run
 
     paths = sorted(studies.iterdir())
     load0 = os.getloadavg()[0]

@@ -1,7 +1,7 @@
 """Benchmark: numpy → Blender mesh through the attribute API vs ``Mesh.from_pydata``.
 
 Builds a closed torus of ~1.08 M triangles (735 x 735 grid, 540 k vertices) and times
-``anatomesh.addon.bridge.new_mesh`` (best of 3), moving the vertices in place (the live smoothing
+``anatomesh.addon.scene.bridge.new_mesh`` (best of 3), moving the vertices in place (the live smoothing
 update), reading them back, and one ``from_pydata`` call for comparison. The "attribute floor"
 (0.38 s on the reference machine, REFERENCE.md) is the cost of the bare attribute calls; the
 target is new_mesh <= 1.2x that floor.
@@ -46,7 +46,7 @@ def load_bridge():
     """The bridge module from this checkout (it only needs bpy and numpy)."""
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("anatomesh_bridge", REPO / "addon" / "bridge.py")
+    spec = importlib.util.spec_from_file_location("anatomesh_bridge", REPO / "addon" / "scene" / "bridge.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

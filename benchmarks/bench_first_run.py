@@ -35,8 +35,9 @@ def blender_first_run() -> None:
     import bpy
 
     import anatomesh
-    from anatomesh.addon import bridge, warmup
-    from anatomesh.app.warmup import counting_compiles
+    from anatomesh.addon.scene import bridge
+    from anatomesh.addon.operators import warmup
+    from anatomesh.app.warmup.compile import counting_compiles
 
     anatomesh.register()
     t0 = time.perf_counter()

@@ -66,7 +66,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     import anatomesh
 
-    from anatomesh.addon import warmup
+    from anatomesh.addon.operators import warmup
 
     anatomesh.register()
     t = time.perf_counter()

@@ -170,7 +170,8 @@ def bench_live(vol, levels):
     except ImportError:
         print("\nlive isovalue: needs the bpy module")
         return
-    from anatomesh.addon import bridge, live_iso
+    from anatomesh.addon.scene import bridge
+    from anatomesh.addon.operators import isovalue as live_iso
 
     me = bpy.data.meshes.new("live")
     obj = bpy.data.objects.new("live", me)

@@ -45,8 +45,8 @@ def main(n: int = 3) -> None:
     import warnings
 
     warnings.simplefilter("ignore")
-    from anatomesh.app.recipe import Recipe
-    from anatomesh.app.run import run
+    from anatomesh.app.flow.recipe import Recipe
+    from anatomesh.app.flow.run import run
     from anatomesh.core import load
 
     print(f"{'input':<46} {'read s':>8} {'run s':>8} surfaces")

@@ -22,10 +22,11 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-from anatomesh.app import stages  # noqa: E402
-from anatomesh.app.recipe import Recipe  # noqa: E402
-from anatomesh.app.web import WebModel, write_page  # noqa: E402
-from anatomesh.app.web_models import color_levels, set_levels  # noqa: E402
+from anatomesh.app.flow import stages  # noqa: E402
+from anatomesh.app.flow.recipe import Recipe  # noqa: E402
+from anatomesh.app.web.page import WebModel, write_page  # noqa: E402
+from anatomesh.app.flow.web_page import set_levels
+from anatomesh.app.web.models import color_levels  # noqa: E402
 from anatomesh.core.export.gltf import write_glb  # noqa: E402
 from anatomesh.core.io import load  # noqa: E402
 

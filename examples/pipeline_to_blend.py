@@ -1,7 +1,7 @@
 """The headless pipeline from Python: label map → decimated organs → STL, GLB, .blend and a PNG.
 
 The same job as ``anatomesh mesh --format stl,glb,blend,png``, through the Python API
-(:class:`anatomesh.app.run.Recipe` and :func:`~anatomesh.app.run.run`); the .blend is
+(:class:`anatomesh.app.flow.run.Recipe` and :func:`~anatomesh.app.flow.run.run`); the .blend is
 built by the add-on exactly as its Extract button builds it. Runs with Blender as a Python module
 or inside Blender, from a checkout of this repository::
 
@@ -63,8 +63,8 @@ def main():
 
     anatomesh_package()
     from anatomesh.core.model.errors import AnatomeshError
-    from anatomesh.app.run import run
-    from anatomesh.app.recipe import Recipe
+    from anatomesh.app.flow.run import run
+    from anatomesh.app.flow.recipe import Recipe
 
     labels = "all" if args.labels == "all" else [t.strip() for t in args.labels.split(",") if t.strip()]
     recipe = Recipe(input=args.input, labels=labels, out_dir=args.out, decimate=args.decimate,

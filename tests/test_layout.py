@@ -2,8 +2,10 @@
 
 * imports point one way: ``addon → app → core``; inside ``core`` every stage imports only
   ``core.model``, ``core.geometry`` and itself (``core.geometry`` only ``core.model``);
-* no import cycle between modules, counting imports placed inside functions (not the
-  ``if TYPE_CHECKING:`` ones, which never run);
+* ``app`` and ``addon`` are rooms (:data:`APP_ROOMS`, :data:`ADDON_ROOMS`), each importing only
+  itself and the rooms below it;
+* no import cycle between modules, counting imports placed inside functions and the
+  ``if TYPE_CHECKING:`` ones (a cycle of types is a cycle of meaning);
 * no ``_private`` name is taken from another module, and a private module (``_kernels.py``) is
   imported only by the modules of its own folder;
 * ``core`` and ``app`` import without Blender; the root package imports without ``bpy``;
@@ -20,6 +22,11 @@ REPO = Path(__file__).resolve().parents[1]
 ROOTS = ("core", "app", "addon")
 #: what each room may import besides itself (rooms are the first two name parts inside core)
 CORE_BASE = {"core.model": set(), "core.geometry": {"core.model"}}
+#: the rooms of ``app`` and ``addon``, lowest first: a room imports only itself and rooms before it
+#: (``app`` is its package face, ``addon`` its top: registration and ``blender -b``)
+APP_ROOMS = ("app.pictures", "app.web", "app.flow", "app.warmup", "app.batch", "app.cli")
+ADDON_ROOMS = ("addon.scene", "addon.operators", "addon.ui", "addon")
+ADDON_TOP = {"addon", "addon.headless"}
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80
 
@@ -44,8 +51,6 @@ def _imports(name):
     path, is_pkg = MODULES[name]
     package = name if is_pkg else name.rpartition(".")[0]
     tree = ast.parse(path.read_text())
-    for block in [n for n in ast.walk(tree) if isinstance(n, ast.If) and _is_type_checking(n.test)]:
-        block.body = []  # `if TYPE_CHECKING:` imports never run: annotations only
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom) and node.level:
             base = package.split(".")[: len(package.split(".")) - node.level + 1]
@@ -62,11 +67,6 @@ def _imports(name):
             for alias in node.names:
                 if alias.name.startswith("anatomesh."):
                     yield alias.name[len("anatomesh."):], None, node.lineno
-
-
-def _is_type_checking(test):
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
-        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
 def _room(module):
@@ -98,6 +98,30 @@ def test_imports_point_one_way():
     bad = [f"{MODULES[s][0].relative_to(REPO)}:{line} imports {d} ({_room(s)} -> {_room(d)})"
            for s, d, _, line in EDGES if d in MODULES and not _allowed(_room(s), _room(d))]
     assert not bad, "imports against the direction addon -> app -> core (stages -> model/geometry):\n" + "\n".join(bad)
+
+
+def _app_room(module):
+    """The room of an ``app``/``addon`` module (its first two name parts), or None elsewhere."""
+    parts = module.split(".")
+    if parts[0] not in ("app", "addon"):
+        return None
+    if module in ("app", *ADDON_TOP):
+        return parts[0]
+    return ".".join(parts[:2])
+
+
+def test_app_and_addon_are_rooms():
+    rooms = set(APP_ROOMS) | set(ADDON_ROOMS) | {"app"}
+    loose = [m for m in MODULES if _app_room(m) and _app_room(m) not in rooms]
+    assert not loose, "modules of app/addon outside their rooms:\n" + "\n".join(sorted(loose))
+
+
+def test_rooms_import_downward():
+    order = {r: i for rooms in (APP_ROOMS, ADDON_ROOMS) for i, r in enumerate(rooms)}
+    bad = [f"{MODULES[s][0].relative_to(REPO)}:{line} imports {d} ({_app_room(s)} -> {_app_room(d)})"
+           for s, d, _, line in EDGES if d in MODULES and _app_room(s) in order and _app_room(d) in order
+           and s.split(".")[0] == d.split(".")[0] and order[_app_room(d)] > order[_app_room(s)]]
+    assert not bad, "imports up the rooms of app/addon:\n" + "\n".join(bad)
 
 
 def test_no_import_cycles():
@@ -139,7 +163,7 @@ def test_no_module_or_function_too_long():
 
 
 def test_core_and_app_import_without_blender():
-    code = ("import sys, anatomesh, anatomesh.core, anatomesh.app.cli, anatomesh.app.run; "
+    code = ("import sys, anatomesh, anatomesh.core, anatomesh.app.cli, anatomesh.app.flow.run; "
             "assert 'bpy' not in sys.modules, 'bpy imported'; "
             "assert 'anatomesh.addon' not in sys.modules; print('ok')")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -32,5 +32,5 @@ def test_every_importable_folder_is_a_listed_package():
 def test_data_folders_ship_their_files():
     cfg = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
     data = cfg["package-data"]
-    assert data["anatomesh.app.web_viewer"] == ["*"] and (REPO / "app" / "web_viewer" / "viewer.js").is_file()
+    assert data["anatomesh.app.web.viewer"] == ["*"] and (REPO / "app" / "web" / "viewer" / "viewer.js").is_file()
     assert data["anatomesh.data.sample"] == ["*"]

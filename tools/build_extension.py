@@ -40,7 +40,7 @@ PYTHON_VERSION = "3.11"
 #: top-level entries never copied to the staging folder (developer-only; the manifest's
 #: exclusion patterns would drop most of them anyway, and a virtualenv would be gigabytes)
 _TOP_SKIP = {"build", "dist", "wheels", "venv", "out", "demo_out", "tests", "benchmarks", "examples",
-             "tools", "data", "web", "docs"}  # web/: the viewer's npm sources (built into app/web_viewer)
+             "tools", "data", "web", "docs"}  # web/: the viewer's npm sources (built into app/web/viewer)
 _ANY_SKIP = shutil.ignore_patterns("__pycache__", "*.pyc", "*.nbi", "*.nbc", "*.egg-info")
 
 

@@ -29,7 +29,7 @@ if [ -n "$need" ]; then
   fi
 fi
 # the web viewer's packages (web/package-lock.json): its unit tests and the check that
-# app/web_viewer/viewer.js is the build of the lockfile
+# app/web/viewer/viewer.js is the build of the lockfile
 if command -v npm >/dev/null 2>&1; then
   web_stamp="web/node_modules/.anatomesh-lock"
   web_want="$(sha1sum web/package-lock.json | cut -d' ' -f1)"

@@ -2,7 +2,7 @@
 // versions pinned in package-lock.json) into one minified classic script (classic, not a module:
 // pages opened from file:// may not load modules), with the libraries' licences beside it.
 //
-//   cd web && npm ci && npm run build     → ../app/web_viewer/viewer.js + LICENSES.txt
+//   cd web && npm ci && npm run build     → ../app/web/viewer/viewer.js + LICENSES.txt
 //   node build.mjs --out DIR              → the same files into DIR (the tests rebuild and compare)
 import { build } from 'esbuild';
 import { mkdirSync, readFileSync, writeFileSync } from 'node:fs';
@@ -11,7 +11,7 @@ import { fileURLToPath } from 'node:url';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const args = process.argv.slice(2);
-const out = args[0] === '--out' ? args[1] : join(here, '..', 'app', 'web_viewer');
+const out = args[0] === '--out' ? args[1] : join(here, '..', 'app', 'web', 'viewer');
 const LIBS = ['three', 'meshoptimizer'];
 const version = (lib) => JSON.parse(readFileSync(join(here, 'node_modules', lib, 'package.json'), 'utf8')).version;
 const banner = `/* Anatomesh web viewer (GPL-3.0-or-later) bundled with ${

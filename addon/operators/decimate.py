@@ -1,117 +1,160 @@
-"""Anatomesh add-on: the Decimate panel: targets, preview with Blender's Decimate modifier, Apply
-with the core result, measured error per organ.
-
-* Target (``Scene.anatomesh_decimate``): a ratio of faces to keep, a face count (all surfaces of
-  the scan together) or a maximum error in mm.
-* Preview (``anatomesh.decimate_preview``): a Decimate modifier (collapse) on every surface object
-  of the scan — non-destructive, quick, but each organ on its own: seams may open in the preview.
-  For a max-error target the ratio of each organ comes from a core run.
-* Apply (``anatomesh.decimate_apply``): core's quadric decimation (:mod:`anatomesh.core.decimate.qem`)
-  on the whole scan at once. For a label map the objects' shells are put back together into one
-  SurfaceSet (shared vertices from the ``anatomesh_vid`` attribute, interface triangles once, pinch
-  copies as split rows), so every interface is decimated once for both organs and seams stay
-  shared; shells stay closed and manifold. The shown (possibly smoothed) shape is decimated and
-  becomes the new rest shape (smoothing iterations go back to 0). The measured error of every
-  organ is stored on its object (:data:`ERROR_PROPS`) and listed in the panel. Undo restores the
-  objects.
-"""
+"""Decimating a scan's objects with core (seams shared, error measured), and the preview with
+Blender's Decimate modifier."""
 from __future__ import annotations
 
+from typing import Dict, List, Optional
 
-import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
-from bpy.types import Operator
+import numpy as np
 
-from .. import scene, warmup
-from ..common import ProgressReporter, active_scan, guarded
-from ..decimation import clear_preview, decimate_collection, preview_ratios, set_preview
-from ..ui.props import TARGET_ITEMS
-
-
-# ---------------------------------------------------------------------------------------------
-# the scan's surfaces as core arrays
-# ---------------------------------------------------------------------------------------------
+from ..scene import bridge
+from . import smooth as live
+from ..scene import objects as scene
+from ..scene.reassemble import object_affine, surface_set_from_objects
 
 
-# ---------------------------------------------------------------------------------------------
-# apply and preview
-# ---------------------------------------------------------------------------------------------
+#: name of the preview modifier on each surface object
+PREVIEW_MODIFIER = "Anatomesh Decimate (preview)"
 
 
-def _scan(op, context):
+#: custom properties set on each object by Apply (the report keys of ``anatomesh mesh``)
+ERROR_PROPS = (
+    "anatomesh_faces_before",                    # faces of the object before decimating
+    "anatomesh_decimation_max_error_mm",         # symmetric Hausdorff distance to the input, mm
+    "anatomesh_decimation_mean_error_mm",        # mean distance, mm
+    "anatomesh_decimation_volume_change_pct",    # enclosed volume change, %
+)
+
+
+def decimation_recipe(target: str, ratio: float, faces: int, max_error: float):
+    """The run's decimation settings for the panel's target ("RATIO", "FACES" or "ERROR"): what
+    ``anatomesh mesh --decimate RATIO`` / ``--target-faces N`` / ``--max-error MM`` asks for."""
+    from ...app.flow.recipe import Recipe
+
+    if target == "RATIO":
+        return Recipe(decimate=float(ratio))
+    if target == "FACES":
+        return Recipe(target_faces=int(faces))
+    return Recipe(max_error=float(max_error))
+
+
+def decimate_collection(collection, target: str, ratio: float = 0.1, faces: int = 50000,
+                        max_error: float = 1.0, progress=None) -> Dict[str, Dict]:
+    """Decimate the scan's surfaces as ``anatomesh mesh`` does (:func:`decimated`), write them
+    back, store the measured errors. Returns ``{object name: shell measures}`` (core's keys:
+    ``faces_before``, ``faces_after``, ``hausdorff_mm``, ``mean_mm``, ``volume_change_pct``)."""
     from ...core.model.errors import AnatomeshError
 
-    coll = bpy.data.collections.get(op.collection) if op.collection else active_scan(context)
-    if coll is None or not coll.anatomesh.is_scan:
-        raise AnatomeshError("no scan collection to decimate: extract surfaces first, or pass "
-                             "collection= with its name")
-    return coll
+    objs = scene.surface_objects(collection)
+    if not objs:
+        raise AnatomeshError(f"scan '{collection.name}' has no surface objects to decimate")
+    results: Dict[str, Dict] = {}
+    recipe = decimation_recipe(target, ratio, faces, max_error)
+    for o, m, rest, measures in decimated(objs, recipe, progress, shown_sets(collection, objs)):
+        write_surface(o, m.vertices, m.faces, None if rest is None else m.meta["vertex_ids"], rest)
+        results[o.name] = measures
+        o["anatomesh_faces_before"] = int(measures["faces_before"])
+        o["anatomesh_decimation_max_error_mm"] = float(measures["hausdorff_mm"])
+        o["anatomesh_decimation_mean_error_mm"] = float(measures["mean_mm"])
+        o["anatomesh_decimation_volume_change_pct"] = float(measures["volume_change_pct"])
+        if PREVIEW_MODIFIER in o.modifiers:
+            o.modifiers.remove(o.modifiers[PREVIEW_MODIFIER])
+    collection["anatomesh_decimation_max_error_mm"] = max(r["hausdorff_mm"] for r in results.values())
+    # the decimated shape is the new rest shape of live smoothing
+    live.forget(collection.name)
+    live.bake(collection)
+    return results
 
 
-class _TargetProps:
-    collection: StringProperty(name="Scan", description="Scan collection (default: the active one)")
-    target: EnumProperty(name="Target", items=TARGET_ITEMS, default="RATIO")
-    ratio: FloatProperty(name="Ratio", default=0.1, min=0.001, max=1.0)
-    faces: IntProperty(name="Faces", default=50000, min=4)
-    max_error: FloatProperty(name="Max error", default=1.0, min=0.0, unit="LENGTH",
-                             description="mm")
-
-    def invoke(self, context, event):  # values not given come from the panel's settings
-        s = context.scene.anatomesh_decimate
-        for name in ("target", "ratio", "faces", "max_error"):
-            if not self.properties.is_property_set(name):
-                setattr(self, name, getattr(s, name))
-        return self.execute(context)
-
-
-class ANATOMESH_OT_decimate_preview(_TargetProps, Operator):
-    """Preview the decimation with Blender's Decimate modifier on each surface (non-destructive;
-    Apply uses core's result, which keeps the seams between organs shared)"""
-
-    bl_idname = "anatomesh.decimate_preview"
-    bl_label = "Preview Decimation"
-    bl_options = {"REGISTER", "UNDO"}
-
-    clear: bpy.props.BoolProperty(name="Clear", default=False, description="Remove the preview")
-
-    @guarded
-    def execute(self, context):
-        coll = _scan(self, context)
-        objs = scene.surface_objects(coll)
-        if self.clear:
-            self.report({"INFO"}, f"Removed the preview from {clear_preview(objs)} surface(s)")
-            return {"FINISHED"}
-        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: again when its kernels are compiled
-            return {"FINISHED"}
-        with ProgressReporter(context, "decimation preview"):
-            set_preview(objs, preview_ratios(coll, objs, self.target, self.ratio, self.faces,
-                                               self.max_error))
-        self.report({"INFO"}, f"Decimate preview on {len(objs)} surface(s) of '{coll.name}'")
-        return {"FINISHED"}
+def shown_sets(collection, objs) -> Optional[List]:
+    """The scan's layer sets at the positions its objects show, as extracted and smoothed (the
+    sets ``anatomesh mesh`` decimates), each with ``[(object, set label)]``; None when the live
+    cache does not hold them or an object was changed since (an edit tool)."""
+    scan = live.live_scan(collection)
+    if scan.shown is None:
+        return None
+    shown = scan.pinches_resolved(scan.shown)
+    names = {o.name: o for o in objs}
+    if set(shown) != set(names) or not all(
+            np.array_equal(bridge.positions(names[n].data), p) for n, p in shown.items()):
+        return None
+    return [(sset.copy_with_vertices(pos), [(names[n], label) for n, k2, _, label in scan.members if k2 == k])
+            for k, (sset, pos) in enumerate(zip(scan.layers, scan.shown))]
 
 
-class ANATOMESH_OT_decimate_apply(_TargetProps, Operator):
-    """Decimate all surfaces of the scan at once with core's quadric decimation: shells stay
-    closed, seams between organs stay shared, the error in mm is measured per organ"""
+def decimated(objs, recipe, progress=None, sets: Optional[List] = None):
+    """The surface objects ``objs`` decimated by :func:`anatomesh.app.flow.stages.decimate` with the
+    run's ``recipe`` and its default cap (one voxel): ``sets`` (:func:`shown_sets`) when given,
+    else shells that share vertices (a label map) reassembled into one SurfaceSet, seams
+    shared; other surfaces (isosurfaces) one by one. Yields ``(object, Mesh, rest positions or
+    None, shell measures)``; a shared shell's mesh has ``meta["vertex_ids"]`` and its rest
+    positions are the set's (before the pinch points are moved apart)."""
+    from ...app.flow import stages
+    from ...core.model.mesh import Mesh
+    from ...core.model.surfaceset import SurfaceSet
 
-    bl_idname = "anatomesh.decimate_apply"
-    bl_label = "Apply Decimation"
-    bl_options = {"REGISTER", "UNDO"}
+    shared = [o for o in objs if bridge.SHARED_INDEX_ATTRIBUTE in o.data.attributes]
+    if sets is None and shared:
+        ss, members = surface_set_from_objects(shared)
+        sets = [(ss, [(o, k + 1) for k, o in enumerate(members)])]
+    for ss, members in sets or []:
+        out, rep = stages.decimate(ss, recipe, stages.one_voxel(ss), progress)
+        shells = {m.value: m for m in stages.shells(out, recipe)[0]}  # as files show them, specks dropped
+        for o, label in members:
+            value = ss.shell_values.get(label, label)
+            m = shells[value]
+            yield o, m, out.vertices[m.meta["vertex_ids"]], rep["shells"][stages.value_key(value)]
+    for o in objs:
+        if o not in shared:
+            one = SurfaceSet.from_meshes([Mesh(*bridge.arrays(o.data))], object_affine(o))
+            out, rep = stages.decimate(one, recipe, stages.one_voxel(one))
+            (measures,) = rep["shells"].values()
+            yield o, out.shells()[0], None, measures
 
-    @guarded
-    def execute(self, context):
-        import time
 
-        coll = _scan(self, context)
-        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: again when its kernels are compiled
-            return {"FINISHED"}
-        t0 = time.perf_counter()
-        before = sum(len(o.data.polygons) for o in scene.surface_objects(coll))
-        with ProgressReporter(context, "decimating") as progress:
-            results = decimate_collection(coll, self.target, self.ratio, self.faces, self.max_error,
-                                          progress=progress)
-        after = sum(len(o.data.polygons) for o in scene.surface_objects(coll))
-        worst = max(r["hausdorff_mm"] for r in results.values())
-        self.report({"INFO"}, f"Decimated '{coll.name}': {before:,} → {after:,} faces, largest "
-                              f"error {worst:.2f} mm ({time.perf_counter() - t0:.1f} s)")
-        return {"FINISHED"}
+def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
+    """New geometry for a surface object (materials and name stay): it becomes the rest shape
+    (``rest``, default ``vertices``: the set's positions before the pinch points are moved
+    apart); ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The
+    edges come from the core (:func:`anatomesh.addon.operators.isovalue.set_triangles`)."""
+    from .isovalue import set_triangles
+
+    me = obj.data
+    set_triangles(me, vertices, faces)
+    bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices if rest is None else rest, "vector")
+    if live.LATTICE_ATTRIBUTE in me.attributes:  # decimated vertices left their lattice cells
+        me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])
+    if vertex_ids is not None:
+        bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, vertex_ids, "int")
+
+
+def preview_ratios(collection, objs, target, ratio, faces, max_error) -> Dict[str, float]:
+    """Decimate-modifier ratio of each object: its faces after / before in the run Apply makes
+    (:func:`decimated`, same settings), so the preview shows Apply's face counts."""
+    recipe = decimation_recipe(target, ratio, faces, max_error)
+    return {o.name: mesh.n_faces / max(m["faces_before"], 1)
+            for o, mesh, _, m in decimated(objs, recipe, sets=shown_sets(collection, objs))}
+
+
+def uniform_ratios(objs, target, ratio, faces) -> Dict[str, float]:
+    """An instant preview while a slider moves: the ratio, or the face count / all faces, for
+    every object ("ERROR" targets need a core run: :func:`preview_ratios`)."""
+    r = ratio if target == "RATIO" else max(faces, 1) / max(sum(len(o.data.polygons) for o in objs), 1)
+    return {o.name: float(min(1.0, r)) for o in objs}
+
+
+def set_preview(objs, ratios: Dict[str, float]) -> None:
+    for o in objs:
+        mod = o.modifiers.get(PREVIEW_MODIFIER) or o.modifiers.new(PREVIEW_MODIFIER, "DECIMATE")
+        mod.decimate_type = "COLLAPSE"
+        mod.use_collapse_triangulate = True
+        mod.ratio = float(min(1.0, max(0.0, ratios[o.name])))
+
+
+def clear_preview(objs) -> int:
+    n = 0
+    for o in objs:
+        mod = o.modifiers.get(PREVIEW_MODIFIER)
+        if mod is not None:
+            o.modifiers.remove(mod)
+            n += 1
+    return n

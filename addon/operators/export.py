@@ -1,68 +1,85 @@
-"""Export operator: the surfaces to files in millimetres, recording their patient space."""
+"""Exporting objects through core's writers (STL, PLY, OBJ, 3MF; mm, space recorded) or Blender's
+glTF exporter (metres, Y up, facing +Z as the CLI's GLB)."""
 from __future__ import annotations
 
 import os
+from typing import List
 
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, StringProperty)
+import numpy as np
 
-from ...core.export.common import file_stem, refuse_overwrite
-from ...core.export.threemf import write_3mf
-from ...core.model.errors import AnatomeshError
-from .. import scene, warmup
-from ..common import abspath, active_scan, guarded
-from ..exporting import export_gltf, export_meshes, object_meshes
-from ..ui import props
+from ...core.export.common import file_stem
+from ..scene import bridge
 
 
-class ANATOMESH_OT_export(bpy.types.Operator):
-    """Write the surfaces to files in millimetres, recording their patient space"""
+def object_meshes(context, objects) -> list:
+    """Core :class:`Mesh` copies of ``objects`` as evaluated (modifiers applied), world mm, with
+    name, label value, space and the label colour (sRGB, as the label table gives it)."""
+    from ...core.model.labels import linear_to_srgb
+    from ...core.model.mesh import Mesh
 
-    bl_idname = "anatomesh.export"
-    bl_label = "Export Surfaces"
-    bl_options = {"REGISTER"}
+    depsgraph = context.evaluated_depsgraph_get()
+    out = []
+    for o in objects:
+        v, f = bridge.world_arrays(o, depsgraph)
+        out.append(Mesh(v, f, name=o.get("anatomesh_name", o.name), value=o.get("anatomesh_value"),
+                        color=tuple(float(c) for c in linear_to_srgb(o.color[:3])),
+                        space=str(o.get("anatomesh_space", "RAS"))))
+    return out
 
-    directory: StringProperty(name="Folder", subtype="DIR_PATH")
-    format: EnumProperty(name="Format", items=props.EXPORT_FORMAT_ITEMS, default="STL")
-    selection: EnumProperty(name="What", items=props.EXPORT_SELECTION_ITEMS, default="COLLECTION")
-    collection: StringProperty(name="Scan", description="Scan collection (default: the active one)")
-    overwrite: BoolProperty(name="Overwrite", default=False, description="Replace existing files")
 
-    @guarded
-    def execute(self, context):
-        settings = context.scene.anatomesh
-        folder = abspath(self.directory or settings.export_dir)
-        if not folder:
-            raise AnatomeshError("no output folder; set one in the Export panel or pass directory=")
-        objs, stem = self._objects(context)
-        if not objs:
-            raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
-        if warmup.defer(self, warmup.DECIMATION_STEP):  # first run: the writers' kernels compile there
-            return {"FINISHED"}
-        os.makedirs(folder, exist_ok=True)
-        if self.format == "3MF":
-            path = os.path.join(folder, file_stem(stem) + ".3mf")
-            self._refuse([path])
-            write_3mf(object_meshes(context, objs), path, title=stem)
-            written = [path]
-        elif self.format in ("GLB", "GLTF"):
-            path = os.path.join(folder, file_stem(stem) + (".glb" if self.format == "GLB" else ".gltf"))
-            self._refuse([path])
-            export_gltf(context, objs, path, self.format)
-            written = [path]
-        else:
-            written = export_meshes(context, objs, folder, self.format.lower(), self._refuse)
-        self.report({"INFO"}, f"Wrote {len(written)} file(s) to {folder}")
-        return {"FINISHED"}
+def export_meshes(context, objects, folder: str, fmt: str, refuse=None) -> List[str]:
+    """One file per object through core's writers (mm, ``SPACE=`` recorded); returns the paths."""
+    from ...core.export.mesh_files import write_mesh
 
-    def _objects(self, context):
-        if self.selection == "SELECTED":
-            objs = [o for o in context.selected_objects if o.type == "MESH"]
-            return objs, (objs[0].users_collection[0].name if objs else "surfaces")
-        coll = bpy.data.collections.get(self.collection) if self.collection else active_scan(context)
-        if coll is None:
-            return [], ""
-        return scene.surface_objects(coll), coll.name
+    plans, used = [], set()
+    for o in objects:
+        stem = file_stem(o.get("anatomesh_name", o.name))
+        if stem in used:
+            stem = file_stem(o.name)
+        used.add(stem)
+        plans.append(os.path.join(folder, f"{stem}.{fmt}"))
+    if refuse is not None:
+        refuse(plans)
+    for m, path in zip(object_meshes(context, objects), plans):
+        write_mesh(m, path, fmt)
+    return plans
 
-    def _refuse(self, paths):
-        refuse_overwrite(paths, self.overwrite, "tick Overwrite or choose another folder")
+
+def export_gltf(context, objects, path: str, fmt: str) -> None:
+    """glTF/GLB through Blender's exporter, converted to metres (glTF's unit) and Y-up, facing
+    +Z (glTF's front) as ``anatomesh mesh --format glb`` does.
+
+    Blender's exporter maps (x, y, z) to glTF (x, z, −y): LPS data (y = posterior) then faces
+    +Z, RAS data would face −Z, so RAS objects are first turned 180° about the body axis
+    (``core.export_gltf.AXES``). The objects are scaled by 0.001 (and turned) for the export
+    and restored exactly afterwards, and the selection is restored; nothing in the scene
+    changes. Re-imported into Blender, the surfaces arrive in LPS (like the CLI's GLB).
+    """
+    sel = [o for o in context.view_layer.objects if o.select_get()]
+    active = context.view_layer.objects.active
+    saved = {o.name: o.matrix_basis.copy() for o in objects}
+    names = set(saved)
+    from mathutils import Matrix
+
+    to_gltf = {"RAS": Matrix.Scale(0.001, 4) @ Matrix.Rotation(np.pi, 4, "Z"),
+               "LPS": Matrix.Scale(0.001, 4)}
+    try:
+        for o in context.view_layer.objects:
+            o.select_set(o.name in names)
+        for o in objects:
+            if o.parent is None or o.parent.name not in names:
+                # objects not made by Anatomesh keep Blender's own front (−Y → glTF +Z)
+                space = str(o.get("anatomesh_space", ""))
+                o.matrix_world = to_gltf.get(space, to_gltf["LPS"]) @ o.matrix_world
+        context.view_layer.update()
+        bpy.ops.export_scene.gltf(filepath=path, export_format="GLB" if fmt == "GLB" else "GLTF_SEPARATE",
+                                  use_selection=True, export_yup=True, export_apply=True,
+                                  export_extras=True)
+    finally:
+        for o in objects:
+            o.matrix_basis = saved[o.name]
+        for o in context.view_layer.objects:
+            o.select_set(o in sel)
+        context.view_layer.objects.active = active
+        context.view_layer.update()

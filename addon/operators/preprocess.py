@@ -1,109 +1,92 @@
-"""Preprocessing operators: extract with the Preprocess panel's settings, show the
-isovalue gallery, start the live isovalue."""
+"""Preprocessing in Blender: the Preprocess panel's settings as recipe fields, an
+extraction with them through the same app functions as ``anatomesh mesh``, and the isovalue
+gallery shown in the Import panel.
+
+The settings live in ``Scene.anatomesh_preprocess`` (:class:`ui.props.ANATOMESH_PG_preprocess`);
+:func:`anatomesh.addon.operators.recipe.preprocess_to_recipe` / ``preprocess_from_recipe`` copy them to and
+from a core ``Recipe`` (the Recipe panel saves and loads them as the ``[preprocess]`` section).
+:func:`extract_preprocessed` runs :func:`anatomesh.app.flow.preprocess.prepare` and
+:func:`~anatomesh.app.flow.preprocess.extract` and adds the surfaces like the Extract button does
+(collection, objects, materials — fuzzy shells get their opacity — live smoothing); what each step did, with its measured effect, is kept on the
+collection (``anatomesh_preprocess``, JSON) and shown in the panel.
+"""
 from __future__ import annotations
 
-import time
+import json
+from typing import List
 
 import bpy
-from bpy.props import FloatProperty, StringProperty
+import numpy as np
 
-from .. import live_iso, preprocessing, warmup
-from ..common import ProgressReporter, active_scan, guarded, load_volume
-from ..recipes import preprocess_to_recipe, recipe_from_scene
-from ..scan import frame_viewports
-from .scan import smooth_new_scan
+from . import scan
+
+GALLERY_IMAGE = "Anatomesh Gallery"
 
 
-def _volume(context):
-    from ...core.model.errors import AnatomeshError
+def extract_preprocessed(context, volume, recipe, progress=None) -> bpy.types.Collection:
+    """Preprocess ``volume`` as ``recipe`` says, extract, and add the surfaces to the scene
+    (as extracted; the operator then smooths them like the Extract button). Returns the new
+    collection."""
+    from ...app.flow import preprocess, stages
+    from ...app.flow.difference import color_differences
+    from ...app.flow.recipe import check_recipe
 
-    s = context.scene.anatomesh
-    if not s.filepath:
-        raise AnatomeshError("read a scan first (Import panel)")
-    return load_volume(s.filepath, s.series, s.label_table, s.space)
-
-
-class ANATOMESH_OT_preprocess_extract(bpy.types.Operator):
-    """Preprocess the scan as the Preprocess panel says, extract its surfaces and report each
-    step's effect on them (mm)"""
-
-    bl_idname = "anatomesh.preprocess_extract"
-    bl_label = "Extract with Preprocessing"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @guarded
-    def execute(self, context):
-        t0 = time.perf_counter()
-        vol = _volume(context)
-        recipe = recipe_from_scene(context)
-        preprocess_to_recipe(context.scene.anatomesh_preprocess, recipe)
-        with ProgressReporter(context, "preprocessing") as progress:
-            coll = preprocessing.extract_preprocessed(context, vol, recipe, progress)
-        smooth_new_scan(context, coll)
-        frame_viewports(context, coll)
-        for line in preprocessing.summary_lines(coll):
-            self.report({"INFO"}, line)
-        self.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' "
-                              f"({time.perf_counter() - t0:.1f} s)")
-        return {"FINISHED"}
+    check_recipe(recipe)
+    prepared, pre = preprocess.prepare(volume, recipe, progress)
+    sset = preprocess.extract(prepared, recipe, pre, progress)
+    sset = stages.drop_specks(sset if sset is not None else stages.extract(prepared, recipe, progress))
+    meshes = [m for m in stages.output_shells(sset)[0] if m.n_faces]
+    if pre is not None and recipe.difference_colors:
+        pre.difference = color_differences(meshes, preprocess.raw_surfaces(pre.base, recipe).shells())
+    coll = scan.scan_to_scene(context, prepared, [(m, 0) for m in meshes], [sset], list(sset.warnings))
+    summary = pre.summary() if pre is not None else {"steps": []}
+    coll["anatomesh_preprocess"] = json.dumps(summary, default=_plain)
+    return coll
 
 
-class ANATOMESH_OT_preview_gallery(bpy.types.Operator):
-    """Render small pictures of the isosurface at the preset levels (or the given ones) into one
-    image shown in the Import panel, to pick an isovalue by looking"""
-
-    bl_idname = "anatomesh.preview_gallery"
-    bl_label = "Isovalue Gallery"
-    bl_options = {"REGISTER"}
-
-    levels: StringProperty(name="Levels", description="VALUE or NAME:VALUE, comma separated "
-                                                      "(empty: the presets)")
-
-    @guarded
-    def execute(self, context):
-        from ...app.gallery import parse_levels
-
-        vol = _volume(context)
-        levels = parse_levels([self.levels]) if self.levels.strip() else None
-        img = preprocessing.show_gallery(vol, levels)
-        self.report({"INFO"}, f"gallery: {img.size[0]}x{img.size[1]} px in image '{img.name}'")
-        return {"FINISHED"}
+def summary_lines(collection) -> List[str]:
+    """What each preprocessing step of a scan collection did, one short line each."""
+    raw = collection.get("anatomesh_preprocess") if collection is not None else None
+    if not raw:
+        return []
+    out = []
+    for step in json.loads(raw).get("steps", []):
+        effect = step.get("effect") or {}
+        line = step["step"].replace("_", " ")
+        if "mean_mm" in effect:
+            line += f": mean {effect['mean_mm']:.2f} mm, max {effect['max_mm']:.2f} mm"
+        if "within_one_voxel" in effect:
+            line += " (within a voxel)" if effect["within_one_voxel"] else " (MORE than a voxel)"
+        out.append(line)
+    return out
 
 
-class ANATOMESH_OT_live_isovalue(bpy.types.Operator):
-    """Add a live isosurface to the active scan (or a new collection): dragging the Live isovalue
-    re-extracts and redraws it"""
+def show_gallery(volume, levels=None, tile: int = 192) -> bpy.types.Image:
+    """Render the isovalue gallery of ``volume`` (:func:`anatomesh.app.pictures.gallery.gallery`) into
+    the image datablock :data:`GALLERY_IMAGE` (made or resized) and return it."""
+    from ...app.pictures.gallery import gallery
 
-    bl_idname = "anatomesh.live_isovalue"
-    bl_label = "Live Isovalue"
-    bl_options = {"REGISTER", "UNDO"}
-
-    level: FloatProperty(name="Isovalue", default=float("nan"),
-                         description="Start value (default: the panel's)")
-
-    @guarded
-    def execute(self, context):
-        from ...core.model.errors import AnatomeshError
-        from ..scene import new_collection, scan_name, setup_units
-
-        vol = _volume(context)
-        if vol.is_label_map:
-            raise AnatomeshError("the live isovalue is for scalar scans; this is a label map")
-        if warmup.defer(self, "isosurfaces"):  # first run: again when the scans' kernels are compiled
-            return {"FINISHED"}
-        p = context.scene.anatomesh_preprocess
-        level = p.live_level if self.level != self.level else self.level  # NaN: the panel's
-        coll = active_scan(context)
-        if coll is None:
-            setup_units(context.scene)
-            coll = new_collection(scan_name(context.scene.anatomesh.filepath))
-            coll.anatomesh.is_scan, coll.anatomesh.space = True, vol.space
-            context.scene.anatomesh.last_collection = coll.name
-        obj = live_iso.live_object(coll, vol, level)
-        p.live_object = obj.name
-        p.live_level = level  # redraws through the update callback
-        self.report({"INFO"}, f"live isovalue {level:g}: {len(obj.data.polygons):,} triangles")
-        return {"FINISHED"}
+    sheet, info = gallery(volume, levels, tile=tile)
+    h, w, _ = sheet.shape
+    img = bpy.data.images.get(GALLERY_IMAGE)
+    if img is not None and tuple(img.size) != (w, h):
+        bpy.data.images.remove(img)
+        img = None
+    if img is None:
+        img = bpy.data.images.new(GALLERY_IMAGE, w, h, alpha=False)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = sheet[::-1].astype(np.float32) / 255.0  # Blender's rows run bottom-up
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    img["anatomesh_levels"] = json.dumps(info)
+    if not bpy.app.background:
+        img.preview_ensure()
+    return img
 
 
-CLASSES = (ANATOMESH_OT_preprocess_extract, ANATOMESH_OT_preview_gallery, ANATOMESH_OT_live_isovalue)
+def _plain(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    return str(obj)

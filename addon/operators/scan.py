@@ -1,211 +1,273 @@
-"""Scan operators: read a scan (Import), extract its surfaces (Extract), edit the label and
-isovalue lists."""
+"""A scan in Blender: fill the Labels panel from a volume, extract its surfaces with the same stage
+functions as the command line, and add them to the scene (collection, objects, live-smoothing cache)."""
 from __future__ import annotations
 
-import os
-import time
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, StringProperty
-from bpy_extras.io_utils import ImportHelper
+import numpy as np
 
-from .. import live, warmup
-from ..common import ProgressReporter, abspath, guarded, load_volume
-from ..scan import extract_to_scene, extraction_recipe, fill_lists, frame_viewports
-from ..ui import props
-
-
-# ---------------------------------------------------------------------------------------------
-# helpers
-# ---------------------------------------------------------------------------------------------
-def extract_and_smooth(context, vol, labels_text: str = "", levels_text: str = "",
-                       method: str = "SETTINGS", render_method: str = "DITHERED"):
-    """Extract the chosen labels/levels, give the new scan the scene's smoothing settings (or
-    ``method``) and smooth it with the command line's driver: the same surfaces as ``anatomesh
-    mesh`` with those settings (its default ``organ``, unless "As extracted" is chosen)."""
-    settings = context.scene.anatomesh
-    recipe, looks = extraction_recipe(settings, vol, labels_text, levels_text)
-    with ProgressReporter(context, "extracting") as progress:
-        coll = extract_to_scene(context, vol, recipe, looks=looks, render_method=render_method,
-                                progress=progress)
-    return smooth_new_scan(context, coll, method)
+from . import smooth as live
+from ..scene import objects as scene
+from .common import parse_list
+from . import iso_presets as presets
 
 
-def smooth_new_scan(context, coll, method: str = "SETTINGS"):
-    """Give a new scan collection the scene's smoothing settings (or ``method``) and smooth it
-    with the command line's driver; returns ``coll``."""
-    settings = context.scene.anatomesh
-    values = {k: getattr(settings, k) for k in props.smoothing_properties()}
-    if method != "SETTINGS":
-        values["smooth_method"] = method
-    live.set_scan_settings(coll, **values)
-    if values["smooth_method"] == "NONE":
-        return coll
-    with ProgressReporter(context, "smoothing"):  # first run: later, once its kernels are ready
-        live.smooth_when_ready(coll)
+def fill_lists(settings, volume) -> None:
+    """Put the volume's labels (present ones) or its isovalue presets into the scene settings."""
+    settings.labels.clear()
+    settings.levels.clear()
+    settings.modality = str(volume.meta.get("modality", ""))
+    shape = "x".join(str(s) for s in volume.shape)
+    spacing = "x".join(f"{s:.3g}" for s in volume.spacing)
+    settings.info = f"{shape} voxels, {spacing} mm, {volume.orientation()} ({volume.space})"
+    if volume.is_label_map:
+        from ...core.io.describe import label_facts
+        from ...core.model.segmentation import as_layers
+
+        settings.kind = "LABELS"
+        for fact in (f for layer in as_layers(volume) for f in label_facts(layer)):
+            if fact["voxels"] <= 0:
+                continue
+            item = settings.labels.add()
+            item.name = fact["name"]
+            item.value = int(fact["value"])
+            info = (volume.labels or {}).get(int(fact["value"]))
+            item.color = tuple(info.color if info is not None else (fact["color"] or (0.8, 0.8, 0.8)))[:3]
+            item.voxels = int(fact["voxels"])
+            item.volume_mm3 = float(fact["volume_mm3"])
+            item.include = True
+    else:
+        settings.kind = "LEVELS"
+        for name, value, color, include in presets.level_presets(volume):
+            item = settings.levels.add()
+            item.name, item.value, item.color, item.include = name, value, color, include
+
+
+def chosen_labels(settings, volume, text: str) -> List[Tuple[int, str, Tuple[float, float, float]]]:
+    """(value, name, colour) of the labels to extract.
+
+    ``text``: "" → the included rows of the label list; "all" → every label present; else values
+    and/or names separated by commas (names match case-insensitively).
+    """
+    from ...core.model.labels import select_labels
+
+    rows = {item.value: item for item in settings.labels}
+    table = volume.labels or {}
+    from ...core.model.segmentation import as_layers
+
+    if text.strip().lower() == "all" or (not text.strip() and not rows):
+        present = set().union(*(np.unique(np.asarray(layer.data)).tolist() for layer in as_layers(volume)))
+        values = sorted(int(v) for v in present if v != 0)
+    elif text.strip():
+        values = select_labels(as_layers(volume)[0] if len(as_layers(volume)) == 1 else _names_only(volume),
+                               parse_list(text))
+    else:
+        values = [v for v, item in rows.items() if item.include]
+    out = []
+    for v in values:
+        if v in rows:
+            out.append((v, rows[v].name, tuple(rows[v].color)))
+        elif v in table:
+            out.append((v, table[v].name, tuple(table[v].color)))
+        else:
+            out.append((v, f"label_{v}", (0.8, 0.8, 0.8)))
+    return out
+
+
+def _names_only(volume):
+    """A data-less label-map Volume holding every structure's name (to resolve a typed list)."""
+    from ...core.model.volume import Volume
+
+    first = volume.layers[0]
+    return Volume(first.data[:0, :0, :0], first.affine, first.space, dict(volume.meta), volume.labels)
+
+
+def chosen_levels(settings, text: str) -> List[Tuple[float, str, Tuple[float, float, float]]]:
+    """(isovalue, name, colour): ``text`` "" → the included rows of the level list; else numbers."""
+    if text.strip():
+        out = []
+        for t in parse_list(text):
+            try:
+                v = float(t)
+            except ValueError:
+                from ...core.model.errors import AnatomeshError
+
+                raise AnatomeshError(f"isovalue {t!r} is not a number; give levels like '300, -500'")
+            out.append((v, f"level {v:g}", (0.9, 0.85, 0.75)))
+        return out
+    return [(item.value, item.name, tuple(item.color)) for item in settings.levels if item.include]
+
+
+def extraction_recipe(settings, volume, labels_text: str = "", levels_text: str = ""):
+    """The Recipe of an extraction from the panel (the ticked rows, or ``labels_text`` /
+    ``levels_text``) and the rows' names and colours {value: (name, colour)}; the scene's
+    generated settings (the Settings panel) go with it."""
+    from .recipe import scene_recipe
+
+    recipe = scene_recipe(settings.id_data)
+    recipe.input, recipe.space = str(volume.meta.get("source", "")), volume.space
+    if volume.is_label_map:
+        chosen = chosen_labels(settings, volume, labels_text)
+        if not chosen:
+            from ...core.model.errors import AnatomeshError
+
+            raise AnatomeshError("no labels chosen; tick at least one label in the list",
+                                 volume.meta.get("source"))
+        recipe.labels = [v for v, _, _ in chosen]
+    else:
+        chosen = chosen_levels(settings, levels_text)
+        if not chosen:
+            from ...core.model.errors import AnatomeshError
+
+            raise AnatomeshError("no isovalue chosen; tick or add a level", volume.meta.get("source"))
+        recipe.levels = [float(v) for v, _, _ in chosen]
+    return recipe, {_key(v): (name, tuple(color)) for v, name, color in chosen}
+
+
+def object_props(volume, value, name) -> dict:
+    return {
+        "anatomesh_value": float(value) if not float(value).is_integer() else int(value),
+        "anatomesh_name": str(name),
+        "anatomesh_source": str(volume.meta.get("source", "")),
+        "anatomesh_series_uid": str(volume.meta.get("series_uid", "") or ""),
+        "anatomesh_space": volume.space,
+        "anatomesh_affine": [float(x) for x in np.asarray(volume.affine).ravel()],
+        "anatomesh_units": "mm",
+    }
+
+
+def frame_viewports(context, collection) -> None:
+    """Make the scan visible in every 3D view: far clip plane, then View All (UI only)."""
+    if bpy.app.background or context.window_manager is None:
+        return
+    box = scene.bounds(scene.surface_objects(collection))
+    size = float((box[1] - box[0]).max()) if box is not None else 1000.0
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type != "VIEW_3D":
+                continue
+            space = area.spaces.active
+            space.clip_start = min(space.clip_start, 0.1)
+            space.clip_end = max(space.clip_end, 20.0 * size)
+            region = next((r for r in area.regions if r.type == "WINDOW"), None)
+            if region is not None:
+                try:
+                    with context.temp_override(window=window, area=area, region=region):
+                        bpy.ops.view3d.view_all(center=False)
+                except RuntimeError:
+                    pass
+
+
+def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
+                     render_method: str = "DITHERED", progress=None) -> bpy.types.Collection:
+    """Extract the surfaces ``recipe`` asks for (labels or levels) with the command line's stage
+    functions (:func:`anatomesh.app.flow.stages.layers_of`, :func:`~anatomesh.app.flow.stages.extract`) and
+    add them as objects in a new collection; ``looks`` {value: (name, colour)} overrides the
+    names and colours (the Labels panel's rows). Not smoothed yet (:func:`live.smooth_collection`)."""
+    from ...app.flow import stages
+    from ...app.warmup.compile import announce_compiling
+
+    def first_run(note: str) -> None:  # only when a kernel really compiles here
+        print(f"Anatomesh: {note}")
+        if progress is not None:
+            progress(0.0, note)
+
+    with announce_compiling(note="first run: compiling kernels once (numba), later runs are fast",
+                            say=first_run):
+        layers = [stages.drop_specks(stages.extract(layer, lrecipe, progress))
+                  for layer, lrecipe in stages.layers_of(volume, recipe)]
+    items = [(m, k) for k, sset in enumerate(layers) for m in stages.output_shells(sset)[0] if m.n_faces]
+    warnings = [w for sset in layers for w in sset.warnings]
+    if not volume.is_label_map:
+        made = {float(m.value) for m, _ in items}
+        warnings += [f"isovalue {lv:g} gives no surface: it is outside the data range"
+                     for lv in recipe.levels if float(lv) not in made]
+    coll = scan_to_scene(context, volume, items, layers, warnings, render_method, looks)
+    group_layers(coll, volume)
     return coll
 
 
-# ---------------------------------------------------------------------------------------------
-# operators
-# ---------------------------------------------------------------------------------------------
-class ANATOMESH_OT_import_scan(bpy.types.Operator, ImportHelper):
-    """Read a scan or label map (NIfTI, NRRD, DICOM folder) and list its labels or isovalues"""
+def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: Sequence[str] = (),
+                  render_method: str = "DITHERED", looks: Optional[Dict] = None) -> bpy.types.Collection:
+    """Add extracted surfaces to the scene: a new collection named after the scan, one object
+    per item, and the live-smoothing cache.
 
-    bl_idname = "anatomesh.import_scan"
-    bl_label = "Import Scan (Anatomesh)"
-    bl_options = {"REGISTER", "UNDO"}
+    ``items``: ``(shell Mesh, layer index)`` with ``meta["vertex_ids"]`` into ``layers[k]`` (the
+    unsmoothed SurfaceSets the live smoothing starts from). Used by :func:`extract_to_scene` and
+    by the headless pipeline (``addon/headless.py``).
+    """
+    from ...core.geometry.pinches import shell_label
+    from ...core.model.errors import AnatomeshError
 
-    filter_glob: StringProperty(default="*.nii;*.nii.gz;*.gz;*.nrrd;*.nhdr;*.dcm;*.ima;*", options={"HIDDEN"})
-    filepath: StringProperty(name="File", subtype="FILE_PATH",
-                             description="NIfTI/NRRD file, a DICOM folder or one file in it")
-    series: StringProperty(name="Series", description="DICOM series or segmentation object (number or "
-                                                      "UID), when several")
-    grid: StringProperty(name="Grid", description="Mask folders: a mask name or 'image'; DICOM "
-                                                  "SEG/RTSTRUCT: 'image' or 'native'")
-    label_table: StringProperty(name="Label table", subtype="FILE_PATH",
-                                description="Label names/colours file (optional; sidecars are found)")
-    space: EnumProperty(name="Space", items=props.SPACE_ITEMS, default="RAS")
-    extract: BoolProperty(name="Extract now", default=True,
-                          description="Create the surfaces of every label (or the default isovalues) now")
-    render_method: EnumProperty(name="Transparency", items=props.RENDER_METHOD_ITEMS, default="DITHERED")
-
-    @guarded
-    def execute(self, context):
-        # speed (first run): while the kernels compile in the background, run again when ready
-        if warmup.defer(self, warmup.reading_step(self.filepath)):
-            return {"FINISHED"}
-        settings = context.scene.anatomesh
-        t0 = time.perf_counter()
-        with ProgressReporter(context, "reading") as progress:
-            vol = load_volume(self.filepath, self.series, self.label_table, self.space, progress=progress,
-                              grid=self.grid)
-        if self.extract and warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
-            return {"FINISHED"}
-        settings.filepath = self.filepath
-        settings.series = self.series
-        settings.grid = self.grid
-        settings.label_table = self.label_table
-        settings.space = self.space
-        fill_lists(settings, vol)
-        for note in vol.meta.get("notes") or []:  # segmentations: what was read, on which grid
-            self.report({"INFO"}, note)
-        for w in vol.warnings:
-            self.report({"WARNING"}, w)
-        if not self.extract:
-            n = len(settings.labels) if vol.is_label_map else len(settings.levels)
-            what = "labels" if vol.is_label_map else "isovalue presets"
-            self.report({"INFO"}, f"Read {os.path.basename(self.filepath)}: {n} {what}")
-            return {"FINISHED"}
-        coll = extract_and_smooth(context, vol, render_method=self.render_method)
-        return _finish_extraction(self, context, coll, t0)
+    if not items:
+        raise AnatomeshError("nothing to show: the chosen labels/levels give no surface",
+                             volume.meta.get("source"))
+    coll = _scan_collection(context, volume, warnings, render_method)
+    members = []
+    for m, k in items:
+        name, color = (looks or {}).get(_key(m.value), (m.name, tuple(m.color)[:3]))
+        ids = shared_index(m)
+        props = object_props(volume, m.value, name)
+        if len(tuple(m.color)) > 3:  # fuzzy shells carry their opacity in an RGBA colour
+            props["anatomesh_alpha"] = float(m.color[3])
+        obj = scene.add_surface(coll, name, m.vertices, m.faces, props,
+                                color, render_method, shared_index=ids, vertex_colors=m.vertex_colors,
+                                rest=layers[k].vertices[ids])
+        obj[live.LAYER_PROPERTY] = k + 1
+        live.store([(obj, ids)], k, layers[k])
+        members.append((obj.name, k, ids, shell_label(layers[k], m)))
+    live.remember(coll, live.LiveScan(list(layers), members))
+    context.scene.anatomesh.last_collection = coll.name
+    return coll
 
 
-def _finish_extraction(op, context, coll, t0: float):
-    """Frame the new surfaces, pass the reader's warnings on, report count and time."""
-    frame_viewports(context, coll)
-    for w in coll.get("anatomesh_warnings", []):
-        op.report({"WARNING"}, w)
-    op.report({"INFO"}, f"{len(coll.objects)} surfaces in '{coll.name}' ({time.perf_counter() - t0:.1f} s)")
-    return {"FINISHED"}
+def _scan_collection(context, volume, warnings, render_method) -> bpy.types.Collection:
+    """A new scan collection in mm, named after the scan, with its source, space and warnings."""
+    scene.setup_units(context.scene)
+    src = volume.meta.get("source", "") or "scan"
+    coll = scene.new_collection(scene.scan_name(src))
+    coll.anatomesh.is_scan = True
+    coll.anatomesh.source = str(src)
+    coll.anatomesh.space = volume.space
+    coll.anatomesh.render_method = render_method
+    coll["anatomesh_space"] = volume.space
+    coll["anatomesh_units"] = "mm"
+    coll["anatomesh_warnings"] = list(warnings)
+    return coll
 
 
-class ANATOMESH_OT_extract(bpy.types.Operator):
-    """Extract the chosen labels (or isovalues) of the scan as surface objects in a new collection"""
-
-    bl_idname = "anatomesh.extract"
-    bl_label = "Extract Surfaces"
-    bl_options = {"REGISTER", "UNDO"}
-
-    filepath: StringProperty(name="File", subtype="FILE_PATH",
-                             description="Scan to read (default: the one in the Import panel)")
-    series: StringProperty(name="Series")
-    label_table: StringProperty(name="Label table", subtype="FILE_PATH")
-    space: EnumProperty(name="Space", items=(("SETTINGS", "As set", "The Import panel's space"),)
-                        + props.SPACE_ITEMS, default="SETTINGS")
-    labels: StringProperty(name="Labels", description="'' = ticked rows of the list, 'all', or "
-                                                      "values/names separated by commas")
-    levels: StringProperty(name="Levels", description="'' = ticked isovalues, or numbers separated "
-                                                      "by commas (scalar scans)")
-    smooth_method: EnumProperty(name="Smoothing", items=(("SETTINGS", "As set", "The Smooth panel's "
-                                                                      "defaults"),) + props.SMOOTH_ITEMS,
-                                default="SETTINGS")
-
-    @guarded
-    def execute(self, context):
-        settings = context.scene.anatomesh
-        path = self.filepath or settings.filepath
-        if not path:
-            from ...core.model.errors import AnatomeshError
-
-            raise AnatomeshError("no scan chosen: set the file in the Import panel or pass filepath=")
-        if warmup.defer(self, warmup.reading_step(path)):  # first run: again when they are ready
-            return {"FINISHED"}
-        space = settings.space if self.space == "SETTINGS" else self.space
-        series = self.series or (settings.series if not self.filepath else "")
-        table = self.label_table or (settings.label_table if not self.filepath else "")
-        t0 = time.perf_counter()
-        with ProgressReporter(context, "reading") as progress:
-            vol = load_volume(path, series, table, space, progress=progress, grid=settings.grid)
-        if warmup.defer(self, warmup.extraction_step(vol)):  # speed (first run)
-            return {"FINISHED"}
-        if self.filepath and abspath(self.filepath) != abspath(settings.filepath):
-            settings.filepath, settings.series, settings.label_table = self.filepath, series, table
-            fill_lists(settings, vol)
-        elif (vol.is_label_map and not len(settings.labels)) or (
-                not vol.is_label_map and not len(settings.levels)):
-            fill_lists(settings, vol)
-        coll = extract_and_smooth(context, vol, self.labels if vol.is_label_map else "",
-                                  self.levels if not vol.is_label_map else "", self.smooth_method,
-                                  settings.render_method)
-        return _finish_extraction(self, context, coll, t0)
+def _key(value):
+    """Label values and isovalues as dictionary keys alike (5 and 5.0 are one key)."""
+    v = float(value)
+    return int(v) if v.is_integer() else v
 
 
-class ANATOMESH_OT_labels_select(bpy.types.Operator):
-    """Tick or untick every label (or isovalue) in the list"""
+def group_layers(coll, volume) -> None:
+    """Overlapping structures (a Segmentation's layers): one child collection per layer,
+    "<scan> layer N", each object's ``anatomesh_layer`` set; a single layer stays as it is."""
+    from ...core.model.segmentation import Segmentation
 
-    bl_idname = "anatomesh.labels_select"
-    bl_label = "Select Labels"
-    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
-
-    action: EnumProperty(items=(("ALL", "All", ""), ("NONE", "None", ""), ("INVERT", "Invert", "")))
-
-    def execute(self, context):
-        settings = context.scene.anatomesh
-        rows = settings.labels if settings.kind == "LABELS" else settings.levels
-        for r in rows:
-            r.include = {"ALL": True, "NONE": False}.get(self.action, not r.include)
-        return {"FINISHED"}
-
-
-class ANATOMESH_OT_level_add(bpy.types.Operator):
-    """Add an isovalue to the list"""
-
-    bl_idname = "anatomesh.level_add"
-    bl_label = "Add Isovalue"
-    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
-
-    value: FloatProperty(name="Isovalue", default=0.0)
-
-    def execute(self, context):
-        settings = context.scene.anatomesh
-        item = settings.levels.add()
-        item.value = self.value
-        item.name = f"level {self.value:g}"
-        settings.level_index = len(settings.levels) - 1
-        return {"FINISHED"}
+    if not isinstance(volume, Segmentation):
+        return
+    layer_of = volume.layer_of()
+    children = {}
+    for obj in list(coll.objects):
+        value = obj.get("anatomesh_value")
+        if value is None or int(value) not in layer_of:
+            continue
+        li = layer_of[int(value)]
+        obj["anatomesh_layer"] = li + 1
+        if li not in children:
+            children[li] = bpy.data.collections.new(f"{coll.name} layer {li + 1}")
+            coll.children.link(children[li])
+        children[li].objects.link(obj)
+        coll.objects.unlink(obj)
 
 
-class ANATOMESH_OT_level_remove(bpy.types.Operator):
-    """Remove the active isovalue from the list"""
-
-    bl_idname = "anatomesh.level_remove"
-    bl_label = "Remove Isovalue"
-    bl_options = {"REGISTER", "UNDO", "INTERNAL"}
-
-    def execute(self, context):
-        settings = context.scene.anatomesh
-        if 0 <= settings.level_index < len(settings.levels):
-            settings.levels.remove(settings.level_index)
-            settings.level_index = max(0, settings.level_index - 1)
-        return {"FINISHED"}
+def shared_index(mesh) -> np.ndarray:
+    """Index of each shell vertex in its surface set's vertex array (``Mesh.meta["vertex_ids"]``)."""
+    idx = mesh.meta.get("vertex_ids")
+    if idx is None or len(idx) != mesh.n_vertices:
+        raise RuntimeError(f"shell {mesh.name!r} lacks meta['vertex_ids'] (core SurfaceSet changed?)")
+    return np.asarray(idx, np.int64)

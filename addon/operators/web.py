@@ -1,80 +1,113 @@
-"""Web operators: the self-contained 3D page of the surfaces, and distance colours."""
+"""Anatomesh add-on: the web page and distance colours from the objects in the scene.
+
+* :func:`paint_margins` colours every surface object by its distance to a target object's
+  surface (within 2/5/10 mm red/yellow/green, farther the object's own colour), through core
+  (:func:`anatomesh.core.geometry.margins.color_by_distance`), as the colour attribute the
+  CLI's ``--distance-to`` gives a ``.blend`` (:data:`anatomesh.addon.scene.objects.COLOR_ATTRIBUTE`).
+* :func:`export_web` writes the self-contained page of the objects as shown (modifiers applied,
+  world mm), with their colour attribute when they have one, through the same writer as
+  ``anatomesh web`` (:mod:`anatomesh.app.web.page`): levels of detail per object, one page folder.
+"""
 from __future__ import annotations
 
-import os
+from typing import Dict, List, Optional, Sequence
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
+import numpy as np
 
-from ...core.export.common import file_stem
-from ...core.model.errors import AnatomeshError
-from .. import warmup
-from ..common import abspath, guarded
-from ..paint import show_vertex_colors
-from ..ui import props
-from ..web import export_web, neighbours_of, paint_margins, surface_objects_of
+from ...core.model.labels import linear_to_srgb
+from ..scene import objects as scene
+from .export import object_meshes
 
 
-class ANATOMESH_OT_export_web(bpy.types.Operator):
-    """Write a 3D page (index.html + scripts) that shows the surfaces in any web browser, offline"""
-
-    bl_idname = "anatomesh.export_web"
-    bl_label = "Export Web Page"
-    bl_options = {"REGISTER"}
-
-    directory: StringProperty(name="Folder", subtype="DIR_PATH",
-                              description="The page goes into <folder>/<scan>_web/index.html")
-    selection: EnumProperty(name="What", items=props.EXPORT_SELECTION_ITEMS, default="COLLECTION")
-    collection: StringProperty(name="Scan", description="Scan collection (default: the active one)")
-    levels: IntProperty(name="Levels of Detail", default=2, min=1, max=4,
-                        description="The coarsest is shown first, finer ones replace it as they load")
-    overwrite: BoolProperty(name="Overwrite", default=False, description="Replace an existing page")
-
-    @guarded
-    def execute(self, context):
-        folder = abspath(self.directory or context.scene.anatomesh.export_dir)
-        if not folder:
-            raise AnatomeshError("no output folder; set one in the Export panel or pass directory=")
-        objs = surface_objects_of(context, self.selection, self.collection)
-        if not objs:
-            raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
-        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
-            return {"FINISHED"}
-        title = objs[0].users_collection[0].name if objs[0].users_collection else "surfaces"
-        out = os.path.join(folder, file_stem(title) + "_web")
-        summary = export_web(context, objs, out, title=title, levels=self.levels, overwrite=self.overwrite)
-        self.report({"INFO"}, f"Wrote {summary['page']} ({summary['total_bytes'] / 1e6:.2f} MB, "
-                              f"{summary['levels'][-1]['triangles']:,} triangles)")
-        return {"FINISHED"}
+def object_colors(context, obj) -> Optional[np.ndarray]:
+    """(N, 3) sRGB colours of ``obj``'s evaluated mesh from its point colour attribute
+    :data:`~anatomesh.addon.scene.objects.COLOR_ATTRIBUTE`, or None when it has none."""
+    ev = obj.evaluated_get(context.evaluated_depsgraph_get())
+    me = ev.to_mesh()
+    try:
+        attr = me.color_attributes.get(scene.COLOR_ATTRIBUTE)
+        if attr is None or attr.domain != "POINT" or len(attr.data) != len(me.vertices):
+            return None
+        rgba = np.empty(len(me.vertices) * 4, np.float32)
+        attr.data.foreach_get("color", rgba)
+    finally:
+        ev.to_mesh_clear()
+    return linear_to_srgb(rgba.reshape(-1, 4)[:, :3]).astype(np.float32)
 
 
-class ANATOMESH_OT_paint_margins(bpy.types.Operator):
-    """Colour every surface by its distance to the active object: within the margins red, yellow, green"""
+def paint_margins(context, objects: Sequence, target, margins: Sequence[float]) -> Dict:
+    """Colour ``objects`` (surface objects, ``target`` among them) by their distance to
+    ``target``; returns core's summary (per object the nearest distance and shares within each
+    margin)."""
+    from ...core.geometry.margins import color_by_distance
 
-    bl_idname = "anatomesh.paint_margins"
-    bl_label = "Distance to Active"
-    bl_options = {"REGISTER", "UNDO"}
+    objects = list(objects)
+    meshes = object_meshes(context, objects)
+    for m, o in zip(meshes, objects):
+        m.name = o.name  # objects are unique by name; labels may repeat
+    _, summary = color_by_distance(meshes, target.name, margins)
+    for o, m in zip(objects, meshes):
+        if m.vertex_colors is not None and len(m.vertex_colors) == len(o.data.vertices):
+            scene.set_vertex_colors(o.data, m.vertex_colors)
+            o.data.update()
+        elif o == target:
+            attr = o.data.color_attributes.get(scene.COLOR_ATTRIBUTE)
+            if attr is not None:
+                o.data.color_attributes.remove(attr)
+    return summary
 
-    target: StringProperty(name="Target", description="Object to measure to (default: the active object)")
-    margins: StringProperty(name="Margins (mm)", default="2,5,10",
-                            description="Up to three increasing distances in mm: red, yellow, green")
 
-    @guarded
-    def execute(self, context):
-        from ...core.geometry.margins import check_margins
+def export_web(context, objects: Sequence, folder: str, *, title: str, levels: int = 2,
+               overwrite: bool = False) -> Dict:
+    """The page of ``objects`` in ``folder`` (``index.html`` + scripts); returns its summary
+    (sizes and triangles per level, :func:`anatomesh.app.web.page.write_page`)."""
+    from ...app.web.page import WebModel, write_page
+    from ...app.web.models import mesh_levels
 
-        target = bpy.data.objects.get(self.target) if self.target else context.active_object
-        if target is None or target.type != "MESH":
-            raise AnatomeshError("choose the target: make a surface object active (or pass target=)")
-        objs = neighbours_of(target)
-        if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
-            return {"FINISHED"}
-        try:
-            margins = check_margins([float(x) for x in self.margins.split(",") if x.strip()])
-        except ValueError:
-            raise AnatomeshError(f"margins must be distances in mm, e.g. 2,5,10; got {self.margins!r}") from None
-        summary = paint_margins(context, objs, target, margins)
-        show_vertex_colors(context)
-        near = sum(1 for s in summary["shells"].values() if s["min_distance_mm"] is not None)
-        self.report({"INFO"}, f"{near} surface(s) within {margins[-1]:g} mm of {target.name}")
-        return {"FINISHED"}
+    objects = list(objects)
+    meshes = object_meshes(context, objects)
+    for m, o in zip(meshes, objects):
+        m.vertex_colors = _matching(object_colors(context, o), m.n_vertices)
+    levels_of = mesh_levels(meshes, levels)
+    full = levels_of[-1]
+    if any(m.vertex_colors is not None for m in full):  # coarse levels: the nearest full vertex's colour
+        for level in levels_of[:-1]:
+            for coarse, fine in zip(level, full):
+                coarse.vertex_colors = _nearest_colors(coarse, fine)
+    return write_page([WebModel(title, levels_of)], folder, title=title, overwrite=overwrite)
+
+
+def _matching(colors: Optional[np.ndarray], n: int) -> Optional[np.ndarray]:
+    return colors if colors is not None and len(colors) == n else None
+
+
+def _nearest_colors(coarse, fine) -> Optional[np.ndarray]:
+    """Colours of ``coarse``'s vertices from the nearest vertex of ``fine`` (None without)."""
+    if fine.vertex_colors is None:
+        return None
+    from ...core.geometry.spatial import TriangleGrid
+
+    pts = np.asarray(fine.vertices, np.float64)
+    idx = np.arange(len(pts), dtype=np.int32)
+    grid = TriangleGrid(pts, np.stack([idx, idx, idx], axis=1))  # a grid over points
+    _, face, _ = grid.closest(coarse.vertices)
+    return fine.vertex_colors[np.maximum(face, 0)]
+
+
+def surface_objects_of(context, selection: str, collection: str = "") -> List[bpy.types.Object]:
+    """The objects an export means: the selected meshes, or the surface objects of the scan
+    collection named ``collection`` (default: the active scan)."""
+    from .common import active_scan
+
+    if selection == "SELECTED":
+        return [o for o in context.selected_objects if o.type == "MESH"]
+    coll = bpy.data.collections.get(collection) if collection else active_scan(context)
+    return scene.surface_objects(coll) if coll is not None else []
+
+
+def neighbours_of(target) -> List[bpy.types.Object]:
+    """The surface objects of the collection holding ``target`` (``target`` among them)."""
+    coll = target.users_collection[0] if target.users_collection else None
+    objs = scene.surface_objects(coll) if coll is not None else []
+    return objs if target in objs else [target] + objs

@@ -1,1 +1,1 @@
-"""The sidebar tab: property groups (settings), panels and lists, isovalue presets."""
+"""The sidebar tab: the settings as property groups (``props``) and the panels that draw them."""

@@ -3,9 +3,10 @@
 import bpy
 from bpy.types import Panel, UIList
 
-from .. import scene, warmup
-from ..common import active_scan
-from ..decimation import PREVIEW_MODIFIER
+from ..scene import objects as scene
+from ..operators import warmup
+from ..operators.common import active_scan
+from ..operators.decimate import PREVIEW_MODIFIER
 
 
 class ANATOMESH_UL_labels(UIList):
@@ -275,10 +276,34 @@ class ANATOMESH_PT_recipe(_Base, Panel):
         self.layout.label(text="Runs headless: anatomesh mesh --recipe FILE", icon="CONSOLE")
 
 
+class ANATOMESH_PT_settings(_Base, Panel):
+    """Every recipe setting the other panels do not hold, made from its definition."""
+    bl_label = "Settings"
+    bl_idname = "ANATOMESH_PT_settings"
+    bl_parent_id = "ANATOMESH_PT_recipe"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        draw_settings(self.layout, context.scene.anatomesh_recipe)
+
+
+def draw_settings(layout, group, recipe_type=None) -> None:
+    """A generated settings group (``Scene.anatomesh_recipe``), section by section."""
+    from ...app.flow.recipe import Recipe
+    from ..operators.setting_props import by_section
+
+    for section, names in by_section(recipe_type or Recipe, group.fields).items():
+        box = layout.box()
+        box.label(text=section.capitalize())
+        col = box.column(align=True)
+        for name in names:
+            col.prop(group, name)
+
+
 #: lists and panels, in the sidebar's order
 CLASSES = (ANATOMESH_UL_labels, ANATOMESH_UL_print_problems, ANATOMESH_PT_import, ANATOMESH_PT_labels,
            ANATOMESH_PT_smooth, ANATOMESH_PT_look, ANATOMESH_PT_decimate, ANATOMESH_PT_print,
-           ANATOMESH_PT_export, ANATOMESH_PT_recipe)
+           ANATOMESH_PT_export, ANATOMESH_PT_recipe, ANATOMESH_PT_settings)
 
 
 def _fill_decimate(op, s, coll):
@@ -296,7 +321,7 @@ class ANATOMESH_PT_preprocess(_Base, Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        from .. import preprocessing
+        from ..operators import preprocess as preprocessing
 
         s, p = context.scene.anatomesh, context.scene.anatomesh_preprocess
         layout = self.layout
@@ -338,7 +363,7 @@ class ANATOMESH_PT_preprocess(_Base, Panel):
 
 def _draw_gallery(self, context):
     """Import panel addition: the isovalue gallery button and the picture."""
-    from .. import preprocessing
+    from ..operators import preprocess as preprocessing
 
     if context.scene.anatomesh.kind != "LEVELS":
         return

@@ -3,10 +3,9 @@ volume's size (read from the file header only, no voxel is read), the cores and 
 
 The estimate is ``WORKER_BYTES + BYTES_PER_VOXEL * voxels``: a worker process with the pipeline
 loaded, plus what one voxel of the label map costs at the pipeline's peak (the label array, the
-extraction's bit planes and the surfaces, smoothed). Measured peak resident memory of one run
-of the default recipe (organ smoothing) on the TotalSegmentator maps: 0.37 M voxels (41 labels)
-290 MiB; the 61-label map upsampled 2x (11 M voxels) 824 MiB, 3x (37 M voxels) 1631 MiB, i.e.
-a ~200 MiB process plus 38-57 bytes per voxel. The constants below cover these with a margin.
+extraction's bit planes and the surfaces, smoothed). The constants below cover the measured
+peak resident memory of the default recipe on the TotalSegmentator maps, upsampled up to 3x,
+with a margin (``benchmarks/bench_batch.py``; figures in docs/MEASURED.md).
 """
 from __future__ import annotations
 

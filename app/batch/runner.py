@@ -7,8 +7,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Union
 
 from ...core.model.errors import AnatomeshError
 from ...core.model.progress import Progress
-from .. import outputs
-from ..recipe import BLENDER_FORMATS, Recipe, check_recipe, dump_recipe, load_recipe
+from ..flow import outputs
+from ..flow.recipe import BLENDER_FORMATS, Recipe, check_recipe, dump_recipe, load_recipe
 from . import state
 from .memory import estimate_bytes, pool_size
 from .progress import BatchProgress

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Dict, List, Optional
 
 from ...core.model.errors import AnatomeshError
-from ..report import json_default
+from ..flow.report import json_default
 
 STATE = ".batch"
 REPORT = "report.json"

@@ -1,4 +1,4 @@
-"""One study of a batch, as a worker runs it: the recipe through :func:`anatomesh.app.run.run`
+"""One study of a batch, as a worker runs it: the recipe through :func:`anatomesh.app.flow.run.run`
 into a fresh folder, a thumbnail, the batch entry (hashes) added to the report, then the folder
 renamed to ``OUT/<id>``. Any failure comes back as a one-line reason; nothing half-written stays.
 
@@ -25,9 +25,9 @@ from ...core.model.errors import AnatomeshError
 from ...core.model.mesh import Mesh
 from ...core.model.volume import space_flip
 from ...core.model.progress import Progress
-from ..recipe import Recipe
-from ..report import json_default
-from ..run import run
+from ..flow.recipe import Recipe
+from ..flow.report import json_default
+from ..flow.run import run
 from . import state
 
 #: thumbnail size in pixels (width, height)
@@ -87,8 +87,8 @@ def run_study(task: StudyTask, progress: Optional[Progress] = None) -> Dict:
 
 def thumbnail(surfaces: List[Mesh], size=THUMBNAIL_SIZE) -> np.ndarray:
     """An (H, W, 3) uint8 picture of the study's surfaces: seen from the front, or from above
-    when that shows more of them (a thin slab of slices). One render at the final size: it costs
-    ~2 % of a small study's time (the summary page shows it a little smaller, smoothing edges)."""
+    when that shows more of them (a thin slab of slices). One render at the final size, a small
+    part of a study's time (the summary page shows it a little smaller, smoothing edges)."""
     extent = np.zeros(3)
     if any(m.n_faces for m in surfaces):
         v = np.concatenate([np.asarray(m.vertices, np.float64) @ space_flip(m.space, "RAS")[:3, :3].T
@@ -101,7 +101,7 @@ def thumbnail(surfaces: List[Mesh], size=THUMBNAIL_SIZE) -> np.ndarray:
 def stamp_report(report: Dict, folder: Path, task: StudyTask, inputs, seconds: Tuple[float, float]) -> Dict:
     """Add the batch entry to the study's report and rewrite it: study id, input, its files'
     hashes, recipe hash, version, host, ``seconds`` (the whole study) and ``run_seconds`` (of
-    it, :func:`~anatomesh.app.run.run`), ``worker_peak_mb`` (the worker process's peak resident
+    it, :func:`~anatomesh.app.flow.run.run`), ``worker_peak_mb`` (the worker process's peak resident
     memory so far). The recipe's output folder becomes the study's final folder."""
     report = dict(report)
     report["recipe"] = dict(report.get("recipe", {}), out_dir=str(Path(task.out, task.id).resolve()))

@@ -20,11 +20,14 @@ from .common import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 def main(argv: Optional[List[str]] = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # --help, --version, or a bad flag (one line printed)
+        return done.code
     if not getattr(args, "command", None):
         parser.print_help()
         return EXIT_BAD_INPUT
-    from ..warmup import announce_compiling  # speed: one stderr line when kernels compile
+    from ..warmup.compile import announce_compiling  # loaded after the flags are read
 
     try:
         with announce_compiling():
@@ -46,12 +49,11 @@ def entry() -> None:
     """The ``anatomesh`` program: :func:`main`, then leave at once.
 
     Tearing down the interpreter (numba's and LLVM's registries, thousands of modules) costs
-    ~0.3 s of CPU after the work is done; every file is closed and written by then, so the
-    process flushes its output and ends with ``os._exit``. The ~100,000 objects of the imports
-    live as long as the process: frozen out of the garbage collector's reach, its full
-    collections take ~0.05 s less on a label map. Large arrays get their own mappings, handed
-    back when freed (:func:`~anatomesh.core.model.memory.return_large_blocks`: 5-11 MiB lower
-    peaks). In-process callers use :func:`main`.
+    CPU time after the work is done; every file is closed and written by then, so the process
+    flushes its output and ends with ``os._exit``. The objects of the imports live as long as
+    the process: frozen out of the garbage collector's reach, so its full collections skip them.
+    Large arrays get their own mappings, handed back when freed
+    (:func:`~anatomesh.core.model.memory.return_large_blocks`). In-process callers use :func:`main`.
     """
     gc.freeze()
     return_large_blocks()
@@ -61,8 +63,15 @@ def entry() -> None:
     os._exit(code)
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with bad flags as one line on stderr (exit code 2), not a usage dump."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
+    p = OneLineParser(prog="anatomesh", description="Medical scans to surface meshes (mm).")
     p.add_argument("--version", action="version", version=f"anatomesh {installed_version()}")
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     subs = p.add_subparsers(dest="command")

@@ -1,6 +1,6 @@
 """``anatomesh check PATH...``: print-readiness checks of mesh files, all parts together.
 
-Reads STL/PLY/OBJ/3MF files or a folder written by ``anatomesh mesh`` (:mod:`anatomesh.app.check`),
+Reads STL/PLY/OBJ/3MF files or a folder written by ``anatomesh mesh`` (:mod:`anatomesh.app.flow.check_files`),
 checks all parts together for a printer profile (:func:`anatomesh.core.printing.checks.check_parts`),
 prints a summary and optionally writes the JSON report. Optional fixes (``--remove-tiny``,
 ``--close-holes``, ``--separate``) work on the meshes read and write the fixed parts to ``--out``
@@ -17,7 +17,7 @@ from typing import Dict, List
 from ...core.model.errors import AnatomeshError
 from ...core.printing.profiles import GAP_REPORT_MM, resolve_profile
 from .mesh import fit_args, hollow_args
-from ..fit import fit_arg, summary as fit_summary  # cut to fit
+from ..flow.fit import fit_arg, summary as fit_summary  # cut to fit
 from .common import EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, write_json
 
 
@@ -52,7 +52,7 @@ def add_parser(subs) -> argparse.ArgumentParser:
 def cmd_check(args) -> int:
     # speed: the checks, readers and writers load only for this command
     from ...core.printing.checks import check_parts
-    from ..check import read_parts
+    from ..flow.check_files import read_parts
 
     fixing = any(x is not None for x in (args.remove_tiny, args.close_holes, args.separate, args.hollow, args.fit))
     if fixing and not args.out:
@@ -92,9 +92,9 @@ def _write_fixed(meshes, args, fit=None):
     from ...core.export.common import refuse_overwrite, unique_stems
     from ...core.export.mesh_files import write_stl
     from ...core.export.threemf import write_3mf
-    from ..check import fix_parts
-    from ..fit import PART_INDEX, fit_parts
-    from ..printtools import hollow_part
+    from ..flow.check_files import fix_parts
+    from ..flow.fit import PART_INDEX, fit_parts
+    from ..flow.print_parts import hollow_part
 
     out = Path(args.out)
     plans = [out / f"{s}.stl" for s in unique_stems([m.name for m in meshes])]

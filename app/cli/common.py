@@ -46,7 +46,7 @@ def short_list(names: List[str], n: int = 4) -> str:
 
 def write_json(data: Dict, path) -> None:
     """A JSON report at ``path`` (folders made), or one clear error."""
-    from ..report import json_default  # speed: the report module pulls the whole flow
+    from ..flow.report import json_default  # speed: the report module pulls the whole flow
 
     path = Path(path)
     try:

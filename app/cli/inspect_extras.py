@@ -1,7 +1,7 @@
 """What ``anatomesh inspect`` adds for preprocessing and isovalue guidance:
 ``--histogram FILE.png`` (the histogram with its labelled peaks and the chosen levels marked,
-:mod:`anatomesh.app.histogram_picture`; levels from ``--level`` or the presets of
-:func:`anatomesh.app.gallery.preset_levels`) and hints (:mod:`anatomesh.app.hints`)."""
+:mod:`anatomesh.app.pictures.histogram`; levels from ``--level`` or the presets of
+:func:`anatomesh.app.pictures.gallery.preset_levels`) and hints (:mod:`anatomesh.app.flow.hints`)."""
 from __future__ import annotations
 
 import argparse
@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Dict
 
 from ...core.model.errors import AnatomeshError
-from ..hints import hints
+from ..flow.hints import hints
 
 
 def add_extra_args(p: argparse.ArgumentParser) -> None:
@@ -34,8 +34,8 @@ def _histogram_png(volume, facts: Dict, args) -> Dict:
     from ...core.export.common import refuse_overwrite  # speed: loaded when asked for
     from ...core.export.snapshot import write_png
     from ...core.io.describe import looks_like_hounsfield
-    from ..gallery import parse_levels, preset_levels
-    from ..histogram_picture import histogram_picture
+    from ..pictures.gallery import parse_levels, preset_levels
+    from ..pictures.histogram import histogram_picture
 
     out: Dict = {}
     path = Path(args.histogram)

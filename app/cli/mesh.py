@@ -1,7 +1,7 @@
 """``anatomesh mesh``: extract, smooth, decimate and write surfaces, with a JSON report.
 
-Settings come from the flags, a recipe file (``--recipe FILE``, :mod:`anatomesh.app.recipe`), or
-both (flags given on the command line override the file); :func:`anatomesh.app.run.run` does the
+Settings come from the flags, a recipe file (``--recipe FILE``, :mod:`anatomesh.app.flow.recipe`), or
+both (flags given on the command line override the file); :func:`anatomesh.app.flow.run.run` does the
 work.
 """
 from __future__ import annotations
@@ -10,13 +10,13 @@ import argparse
 import sys
 
 from ...core.model.errors import AnatomeshError
-from ..fit import fit_arg  # cut to fit
-from ..recipe import FORMATS, Recipe, load_recipe
+from ..flow.fit import fit_arg  # cut to fit
+from ..flow.recipe import FORMATS, Recipe, load_recipe
 from .common import (EXIT_CHECK_FAILED, EXIT_OK, TerminalProgress, add_input_args, path_arg,
                      short_list, split_list)
-from .web import add_distance_args, margins_arg
-from . import preprocess_args  # --resample, --interpolate, --fuzzy, ...
-from .settings_args import add_setting_args
+from .web import DISTANCE_FLAGS, add_distance_args
+from . import preprocess_summary
+from .settings_args import add_setting_args, flag_values
 
 #: flags made from the recipe's field definitions, set on the Recipe field of the same name as given
 SURFACE_FLAGS = ("contours", "space", "cap", "keep_largest", "min_component_mm3")
@@ -25,10 +25,12 @@ DECIMATION_FLAGS = ("decimate", "target_faces", "max_error", "lod")
 PRINT_FLAGS = ("thicken", "clearance", "check", "profile", "min_wall", "min_gap")
 HOLLOW_FLAGS = ("hollow", "drain_holes", "drain_diameter")
 OUTPUT_FLAGS = ("report", "overwrite")
+PREPROCESS_FLAGS = ("resample", "resample_method", "roi", "smooth_volume", "interpolate", "fuzzy_boundary",
+                    "fill_cavities", "close_handles", "fuzzy", "precise", "difference_colors")
 #: flags of add_input_args (shared with inspect) that set the Recipe field of the same name
 INPUT_FLAGS = ("series", "volume_index", "label_table", "grid")
 RECIPE_FLAGS = (INPUT_FLAGS + SURFACE_FLAGS + SMOOTHING_FLAGS + DECIMATION_FLAGS + PRINT_FLAGS
-                + HOLLOW_FLAGS + OUTPUT_FLAGS)
+                + HOLLOW_FLAGS + OUTPUT_FLAGS + PREPROCESS_FLAGS + DISTANCE_FLAGS)
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -44,7 +46,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
     add_setting_args(m, DECIMATION_FLAGS)
     _print_args(m)
     add_distance_args(m)  # distance colouring, web page levels
-    preprocess_args.add_arguments(m)
+    add_setting_args(m.add_argument_group("preprocessing (before and around extraction; each step's "
+                                          "effect on the surface is measured and reported)"), PREPROCESS_FLAGS)
     add_setting_args(m, OUTPUT_FLAGS)
     m.set_defaults(func=cmd_mesh)
     return m
@@ -126,15 +129,8 @@ def recipe_from_args(args) -> Recipe:
     if any(getattr(args, t) is not None for t in targets):  # a target given here replaces the file's
         for t in targets:
             setattr(recipe, t, None)
-    for name in RECIPE_FLAGS:
-        value = getattr(args, name)
-        if value is not None:
-            setattr(recipe, name, value)
-    for name, value in (("distance_to", args.distance_to), ("margins", margins_arg(args.margins)),
-                        ("web_levels", args.web_levels)):
-        if value is not None:
-            setattr(recipe, name, value)
-    preprocess_args.apply(args, recipe)
+    for name, value in flag_values(args, RECIPE_FLAGS).items():
+        setattr(recipe, name, value)
     if not recipe.input:
         raise AnatomeshError("no input: give a scan path or a --recipe whose [input] has a path")
     if not recipe.out_dir:
@@ -143,7 +139,7 @@ def recipe_from_args(args) -> Recipe:
 
 
 def cmd_mesh(args) -> int:
-    from ..run import run  # speed: the flow's modules load only for this command
+    from ..flow.run import run
 
     recipe = recipe_from_args(args)
     result = run(recipe, TerminalProgress("meshing"), keep_voxels=False)  # memory: one shot
@@ -158,7 +154,7 @@ def cmd_mesh(args) -> int:
     if dec:
         line += (f", decimated {dec['faces_before']} -> {dec['faces_after']} faces "
                  f"(max error {dec['hausdorff_mm']:.3g} mm)")
-    for pre_line in preprocess_args.summary_lines(rep):
+    for pre_line in preprocess_summary.summary_lines(rep):
         print(pre_line)
     print(f"{line} -> {recipe.out_dir}; report {result.report_path}")
     check = rep.get("print_check")

@@ -1,6 +1,6 @@
 """``anatomesh preview SCAN --out gallery.png``: one picture of small renders of the isosurface at
 each named level (CT presets or histogram-derived levels, or ``--levels``), so a user picks an
-isovalue by looking (:func:`anatomesh.app.gallery.gallery`)."""
+isovalue by looking (:func:`anatomesh.app.pictures.gallery.gallery`)."""
 from __future__ import annotations
 
 import argparse
@@ -29,7 +29,7 @@ def cmd_preview(args) -> int:
     from ...core.export.common import refuse_overwrite  # speed: loaded for this command only
     from ...core.export.snapshot import VIEWS, write_png
     from ...core.io import load
-    from ..gallery import gallery, parse_levels
+    from ..pictures.gallery import gallery, parse_levels
 
     out = Path(args.out)
     if out.suffix.lower() != ".png":

@@ -2,7 +2,7 @@
 
 One model per ``report.json`` given (several reports: one page to switch between them, e.g.
 resection variants; structures they share are stored once), plus one model of all mesh files
-given (STL, PLY, OBJ, GLB). The page (:mod:`anatomesh.app.web`) opens from the folder with a
+given (STL, PLY, OBJ, GLB). The page (:mod:`anatomesh.app.web.page`) opens from the folder with a
 double-click. The distance options are shared with ``anatomesh mesh``.
 """
 from __future__ import annotations
@@ -10,28 +10,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ...core.model.errors import AnatomeshError
-from .common import EXIT_OK, TerminalProgress, split_list, write_json
+from ..flow.recipe import Recipe
+from ..flow.settings import check_values, read_number_lists
+from .common import EXIT_OK, TerminalProgress, write_json
+from .settings_args import add_setting_args, flag_values
+
+
+#: the distance colouring and page settings (``mesh`` and ``web``), flags made from their definitions
+DISTANCE_FLAGS = ("distance_to", "margins", "web_levels")
 
 
 def add_distance_args(p: argparse.ArgumentParser) -> None:
     """``--distance-to``, ``--margins`` and ``--web-levels`` (``mesh`` and ``web``)."""
-    p.add_argument("--distance-to", metavar="LABEL",
-                   help="colour every other surface by its distance to this structure (name or value)")
-    p.add_argument("--margins", metavar="MM,MM,MM",
-                   help="safety margins for --distance-to, coloured red, yellow, green (default 2,5,10)")
-    p.add_argument("--web-levels", type=int, metavar="N",
-                   help="levels of detail of the web page, the coarsest shown first (1..4, default 2)")
-
-
-def margins_arg(text):
-    """``"2,5,10"`` → ``[2.0, 5.0, 10.0]`` (None stays None)."""
-    if text is None:
-        return None
-    try:
-        return [float(x) for x in split_list(text)]
-    except ValueError:
-        raise AnatomeshError(f"--margins must be distances in mm, e.g. 2,5,10; got {text!r}") from None
+    add_setting_args(p, DISTANCE_FLAGS)
 
 
 def add_parser(subs) -> argparse.ArgumentParser:
@@ -50,12 +41,14 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def cmd_web(args) -> int:
-    from ..web import write_page  # speed: the page's modules load for this command only
-    from ..web_models import models_of_inputs
+    from ..web.page import write_page
+    from ..web.models import models_of_inputs
 
-    models = models_of_inputs(args.inputs, n_levels=2 if args.web_levels is None else args.web_levels,
-                              distance_to=args.distance_to, margins=margins_arg(args.margins),
-                              progress=TerminalProgress("levels"))
+    settings = Recipe(**flag_values(args, DISTANCE_FLAGS))  # checked as a run checks them
+    read_number_lists(settings)
+    check_values(settings)
+    models = models_of_inputs(args.inputs, n_levels=settings.web_levels, distance_to=settings.distance_to,
+                              margins=settings.margins, progress=TerminalProgress("levels"))
     summary = write_page(models, args.out, title=args.title or "", overwrite=args.overwrite)
     if args.report:
         write_json(summary, args.report)

@@ -38,19 +38,19 @@ vertices never move.
 Error in mm: the running estimate of a merged vertex is ``sqrt(cost / n)``, its quadric cost
 (the summed squared distances to the planes of every input face merged into it) per input
 vertex merged (``n``). The sum alone grows with the number of planes, not with the distance: on
-a smooth shell reduced to 10 % a vertex carries ~50 planes and ``sqrt(cost)`` is 4-6x the true
-distance, so a cap on it stopped small shells at 12-16 % of their faces while they were 0.4 mm
-from the input. A ``max_error`` bound (or a cap) refuses collapses whose estimate exceeds it; the
-result is then *measured* — symmetric Hausdorff and mean distance per shell, exact
-point-to-triangle distances from the vertices and face centroids of each surface to the other
-(:func:`anatomesh.core.geometry.measure.surface_distance`; after Cignoni, Rocchini & Scopigno
-1998, "Metro: measuring error on simplified surfaces") — and the labels whose shells exceed
-the bound are decimated again with their bound scaled down (by bound / measured, 0.125-0.5
-each time; up to 5 runs). A shell that still exceeds it after one stricter run (a rough shell
-whose vertices carry few planes: CT skin and bone under a large face budget) is then bounded
-on the whole quadric cost, which bounds the squared distance to every merged plane (Garland &
-Heckbert 1997) and is the conservative estimate; ``info["error_bound_met"]`` tells whether it
-held.
+a strongly reduced smooth shell a vertex carries dozens of planes and ``sqrt(cost)`` is several
+times the true distance, so a cap on it would stop small shells far short of their face target
+while they are still well within the bound. A ``max_error`` bound (or a cap) refuses collapses
+whose estimate exceeds it; the result is then *measured* — symmetric Hausdorff and mean distance
+per shell, exact point-to-triangle distances from the vertices and face centroids of each surface
+to the other (:func:`anatomesh.core.geometry.measure.surface_distance`; after Cignoni, Rocchini &
+Scopigno 1998, "Metro: measuring error on simplified surfaces") — and the labels whose shells
+exceed the bound are decimated again with their bound scaled down (by bound / measured,
+0.125-0.5 each time; up to 5 runs). A shell that still exceeds it after one stricter run (a
+rough shell whose vertices carry few planes: CT skin and bone under a large face budget) is then
+bounded on the whole quadric cost, which bounds the squared distance to every merged plane
+(Garland & Heckbert 1997) and is the conservative estimate; ``info["error_bound_met"]`` tells
+whether it held.
 
 The pieces shared with :mod:`.progressive` (input checks, budgets, the collapse driver,
 SurfaceSets in and out, measuring) are in :mod:`.engine`.

@@ -2,9 +2,9 @@
 Lambert shading, one colour per surface) and a PNG writer (zlib only).
 
 For thumbnails and contact sheets (batch summaries, isovalue previews, reports): a few hundred
-pixels, a second or less for a million triangles. Views are anatomical: ``"anterior"`` looks at
-the patient's front (patient's right on the image's left, head up), ``"posterior"``,
-``"left"``/``"right"`` (the patient's side the viewer stands at), ``"superior"``/``"inferior"``.
+pixels. Views are anatomical: ``"anterior"`` looks at the patient's front (patient's right on
+the image's left, head up), ``"posterior"``, ``"left"``/``"right"`` (the patient's side the
+viewer stands at), ``"superior"``/``"inferior"``.
 """
 from __future__ import annotations
 

@@ -47,7 +47,8 @@ MODEL_PART = "3D/3dmodel.model"
 REL_MODEL = "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"
 #: rows formatted per string operation (bounds the memory of one chunk to a few MB)
 CHUNK = 65536
-#: zlib level for the model part: 1 is ~5x faster than the default 6 for ~20 % more bytes
+#: zlib level for the model part: 1 compresses much faster than the default 6, for a somewhat
+#: larger file
 COMPRESSLEVEL = 1
 UNIT_MM = {"micron": 0.001, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8,
            "meter": 1000.0}

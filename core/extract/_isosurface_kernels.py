@@ -31,15 +31,13 @@ view bumps the parent's reference count atomically, which stalls two threads sha
 prange index is passed on as int64 (numba may type it unsigned, and unsigned + signed → float).
 The triangle writer copies a fixed 15 table entries per cell (unrolled, unsigned indices) and
 lets the next cell overwrite the excess, instead of a loop whose data-dependent exit the branch
-predictor misses once per cell (about a quarter of that pass on the chest CT). The vertex
-writer runs one loop over a run-time axis, with capping a run-time flag, around one inlined copy
-of :func:`_vertex`: one loop per literal axis, specialised without capping, was 12-28 % faster
-in that pass (5 % of the whole isosurface on the chest CT: 37.5 against 39.5 ms) but each
-specialised copy compiled for seconds, 10 s in all on a cold cache (the first run). Sharing
-endpoint gradients between edges (computed once per slab into row buffers: 28 % fewer
-evaluations at the chest CT's skin) measured 25-35 % slower: inline, the gradient loads overlap
-with the division and square-root latency of each vertex; in a pass of their own they do not,
-and the buffer traffic comes on top.
+predictor misses once per cell. The vertex writer runs one loop over a run-time axis, with
+capping a run-time flag, around one inlined copy of :func:`_vertex`: a loop per literal axis,
+specialised without capping, makes that pass a little quicker, but each specialised copy adds
+much compile time on a cold cache (the first run). Endpoint gradients are computed per edge, not
+shared between edges through per-slab row buffers (which saves evaluations but is slower):
+inline, the gradient loads overlap with the division and square-root latency of each vertex; in
+a pass of their own they do not, and the buffer traffic comes on top.
 """
 from __future__ import annotations
 
@@ -370,8 +368,8 @@ def emit_vertices(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, slab_start
 def _vertices_slab(v, bits, level, t_min, pad, m, n, n_xe, n_ye, n_ze, idx, out_v, out_n, kz):
     """The vertices of slab kz from vertex ``idx`` on; with ``pad`` (a padded grid) an edge's
     endpoint may lie outside the grid (a capping edge). One loop over a run-time axis and one
-    inlined vertex writer (compiles in a fifth of the time of a loop per literal axis, with and
-    without capping; 3-5 % slower)."""
+    inlined vertex writer (compiles much faster than a loop per literal axis, with and without
+    capping, at a small cost in run time)."""
     nzv, nyv, n_words = bits.shape
     last = _last_mask(v.shape[2] + 2 * pad, n_words)
     z = kz - pad

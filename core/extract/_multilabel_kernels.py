@@ -6,11 +6,11 @@ shared by voxels (a-1..a, b-1..b, c-1..c); used points have a, b, c >= 1. Work i
 lattice planes ``a`` (the outermost axis in C order): count per plane, prefix sums, then fill —
 so the output does not depend on the number of threads. Only ``count`` and ``emit`` are parallel
 (small maps run ``count_serial`` and one :func:`emit_run` on one thread instead);
-the other passes are cheap (memory-bound or sparse) and a parallel region costs milliseconds
-when other processes share the cores.
+the other passes are cheap (memory-bound or sparse) and starting a parallel region costs more
+than it saves there when other processes share the cores.
 
 Hot loops avoid short-circuit boolean chains, array views and non-inlined calls: in numba these
-cost reference counting or a real call per element (measured 2-30x here).
+cost reference counting or a real call per element.
 """
 from __future__ import annotations
 
@@ -86,7 +86,7 @@ def crop_pad(data, i0, j0, k0, lut, use_lut, bg, out):
                 for k in range(1, n2 - 1):
                     dst[k] = lut[src[k0 + k - 1]]
             else:  # a loop, not a slice copy: numba compiles a slice copy's shape checks and
-                for k in range(1, n2 - 1):  # their error messages, seconds of first-run time
+                for k in range(1, n2 - 1):  # their error messages, slowing the first run
                     dst[k] = src[k0 + k - 1]
 
 
@@ -105,8 +105,8 @@ def permute_columns(a, order):
 def _used(r00, r01, r10, r11, c):
     """Lattice point c of the 4 rows is used when its 8 voxels are not all equal.
 
-    Written with bitwise ``|`` on purpose: short-circuit ``and``/``or`` chains made the loops
-    around it 30x slower (branches keep numba from pruning the reference counting of the row
+    Written with bitwise ``|`` on purpose: short-circuit ``and``/``or`` chains make the loops
+    around it much slower (branches keep numba from pruning the reference counting of the row
     views, and from vectorising)."""
     x = r11[c]
     return ((r00[c - 1] != x) | (r00[c] != x) | (r01[c - 1] != x) | (r01[c] != x)
@@ -216,7 +216,7 @@ def _plane_vertices(P, a, start, ids, mask, words, write, bg, needs, origin, M, 
 def _config(P, a, b, c, L):
     """8-bit mask of the voxels around padded lattice point (a, b, c) holding label L. An
     ordinary call: its caller :func:`_fan` runs at complex vertices only, and inlining it there
-    twice compiled 0.4 s slower."""
+    twice would only add compile time."""
     r00 = P[a - 1, b - 1]
     r01 = P[a - 1, b]
     r10 = P[a, b - 1]
@@ -253,8 +253,8 @@ def _is_complex(P, a, b, c, bg, needs):
     """1 when some label at lattice point (a, b, c) has a config that may need vertex copies.
 
     Hot (once per vertex): scalar loads, selects and bit masks only — no array views, which would
-    cost numba reference counting per vertex. The scalar helpers are ordinary calls (measured at
-    the same speed as numba's ``inline="always"``, which compiled 1 s slower)."""
+    cost numba reference counting per vertex. The scalar helpers are ordinary calls (numba's
+    ``inline="always"`` runs no faster here and compiles slower)."""
     # local voxel q = u + 2 v + 4 w is voxel (a - 1 + u, b - 1 + v, c - 1 + w)
     v0 = P[a - 1, b - 1, c - 1]
     v1 = P[a, b - 1, c - 1]
@@ -269,7 +269,7 @@ def _is_complex(P, a, b, c, bg, needs):
     c1 = _mask8(v0, v1, v2, v3, v4, v5, v6, v7, y)
     result = ((v0 != bg) & (needs[c0] != 0)) | ((y != bg) & (needs[c1] != 0))
     covered = c0 | c1
-    while covered != 255:  # a third label or more: 2 % of the corners of real maps
+    while covered != 255:  # a third label or more: rare on real maps
         x = _next_label(v0, v1, v2, v3, v4, v5, v6, v7, covered, v0)
         cfg = _mask8(v0, v1, v2, v3, v4, v5, v6, v7, x)
         covered |= cfg

@@ -34,7 +34,7 @@ Construction of one case
 
 :func:`check_table` asserts the properties (each crossed edge in exactly one loop, each face
 segment used once, orientation against the trilinear interpolant, no forbidden diagonal); the
-tests run it (0.1 s); building the table at import asserts that loops close and that every loop
+tests run it; building the table at import asserts that loops close and that every loop
 has an allowed triangulation.
 """
 from __future__ import annotations

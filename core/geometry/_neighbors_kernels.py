@@ -1,8 +1,8 @@
 """Numba kernels building compressed (CSR) neighbourhoods of a triangle mesh.
 
 Serial on purpose, but for :func:`one_ring`, :func:`feature_rings` and the row packing they use
-(millions of vertices in the largest maps' smoothing): each runs once per mesh in O(M) (~0.1 s
-per million triangles) and serial kernels compile several times faster than parallel ones.
+(millions of vertices in the largest maps' smoothing): each runs once per mesh in O(M), and
+serial kernels compile much faster than parallel ones.
 
 Private: call them through :mod:`anatomesh.core.geometry.neighbors`, which validates inputs. Every CSR is
 a pair ``(offsets (n+1,) int64, indices (nnz,) int32)``: the neighbours of item ``i`` are
@@ -74,8 +74,8 @@ def vertex_faces(faces, n_vertices):
 @njit(parallel=True, cache=True)
 def one_ring(faces, n_vertices, vf_offsets, vf):
     """Vertex → 1-ring neighbours CSR (vertices sharing an edge), from the vertex→faces CSR.
-    Parallel over vertices (every mesh structure starts with it: ~0.4 s serial for the
-    3.4 M vertices of an 834x512x512 map)."""
+    Parallel over vertices (every mesh structure starts with it, and the largest maps have
+    millions of vertices)."""
     upper = np.zeros(n_vertices + 1, np.int64)
     for i in range(n_vertices):
         upper[i + 1] = upper[i] + 2 * (vf_offsets[i + 1] - vf_offsets[i])

@@ -2,8 +2,8 @@
 
 Linear-time passes over a triangle mesh: per-face measures (area, enclosed volume, degenerate
 faces), per-vertex edge and fan counts from the vertex → faces CSR, and connected components by
-union-find. They replace sorting all 3M half-edges (``np.unique``/``argsort``), which took
-seconds per million faces. Faces must not repeat a vertex (the caller checks with
+union-find, without sorting all 3M half-edges (``np.unique``/``argsort``), which is slow on
+large meshes. Faces must not repeat a vertex (the caller checks with
 :func:`face_measures` first).
 """
 from __future__ import annotations
@@ -136,7 +136,7 @@ def face_components(faces, n_vertices):
 @njit(cache=True)
 def _sort_order(keys, m, order):
     """``order[:m]`` sorts ``keys[:m]``: Shell sort (gaps 1, 4, 13, ...), insertion sort for the
-    usual handful of spokes. Written out because ``np.argsort`` alone adds seconds to the
+    usual handful of spokes. Written out because ``np.argsort`` alone adds much to the
     first-run compilation of this kernel."""
     for t in range(m):
         order[t] = t

@@ -4,8 +4,8 @@ Smoothing visits every vertex's neighbours once per iteration; a generic half-ed
 costs too many indirections for that. Following Mönch et al. 2012 ("Interactive mesh smoothing
 for medical applications", Computer Graphics Forum 32(8)), neighbours are stored as
 one flat index array plus per-vertex offsets: the neighbours of vertex ``i`` are
-``indices[offsets[i]:offsets[i + 1]]``. The structure is built once per mesh (numba, ~0.1 s for a
-million triangles) and reused across iterations and parameter changes: :func:`structure` caches
+``indices[offsets[i]:offsets[i + 1]]``. The structure is built once per mesh (numba, linear
+time) and reused across iterations and parameter changes: :func:`structure` caches
 the last few it built, keyed by the faces array.
 
 Example
@@ -126,8 +126,7 @@ class MeshStructure:
 
     def release_ring(self) -> None:
         """Drop the 1-ring (rebuilt on use): a one-shot smoothing of a label map needs it only
-        to build its feature rings (memory: 4 bytes per ring entry + 8 per vertex, 104 MiB on
-        an 834x512x512 map)."""
+        to build its feature rings (memory: 4 bytes per ring entry + 8 per vertex)."""
         self._ring = None
 
     def valence(self) -> np.ndarray:
@@ -241,7 +240,7 @@ class MeshStructure:
         last = self._groups_seen
         if last is not None and last[0]() is face_groups and last[1] == sample:
             return last[2]
-        # SHA-256 (hardware-accelerated) straight from the buffer: 3x faster than blake2b of a copy
+        # SHA-256 (hardware-accelerated) straight from the buffer: faster than blake2b of a copy
         content = hashlib.sha256(memoryview(np.ascontiguousarray(arr)).cast("B")).hexdigest()
         key = f"{arr.dtype.str}{arr.shape}:{content}"
         try:

@@ -14,9 +14,9 @@ def transpose_rescale(stack, slope, intercept, out, k0):
     """``out[i, j, k0 + k] = stack[k, j, i] * slope[k] + intercept[k]``, strip by strip.
 
     One image row j at a time, in strips of 8 columns: the reads are short contiguous runs
-    of each slice's row, the writes fill 8 output lines ``out[i, j, :]`` in order. Serial: on
-    two cores it is memory-bound (~0.06 s CPU for 512x512x141), and a parallel region would
-    cost more than it saves when other processes share the cores.
+    of each slice's row, the writes fill 8 output lines ``out[i, j, :]`` in order. Serial: it
+    is memory-bound, and a parallel region would cost more than it saves when other processes
+    share the cores.
 
     Parameters
     ----------

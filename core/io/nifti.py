@@ -108,7 +108,7 @@ def read_nifti(path, volume_index: Optional[int] = None, labels=None,
 def _nibabel():
     """``nibabel``, imported without pydicom when pydicom is not loaded yet and we are not inside
     Blender: ``nibabel.nifti1`` imports pydicom only for the rare DICOM header extension, which
-    costs ~0.3 s of every NIfTI command (a later ``import pydicom`` works as usual)."""
+    would slow the start of every NIfTI command (a later ``import pydicom`` works as usual)."""
     if "nibabel" in sys.modules or "pydicom" in sys.modules or "bpy" in sys.modules:
         import nibabel
         return nibabel

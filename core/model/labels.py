@@ -15,14 +15,12 @@ import colorsys
 import difflib
 import re
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from .errors import AnatomeshError
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .volume import Volume
 
 #: the anatomical palette (see :func:`anatomical_color`)
 
@@ -215,8 +213,9 @@ def linear_to_srgb(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.maximum(c, 0) ** (1 / 2.4) - 0.055)
 
 
-def select_labels(volume: "Volume", wanted: Union[str, Sequence[Union[int, str]]]) -> Optional[List[int]]:
-    """Label values for ``wanted`` ("all", values, or names matched case-insensitively)."""
+def select_labels(volume, wanted: Union[str, Sequence[Union[int, str]]]) -> Optional[List[int]]:
+    """Label values for ``wanted`` ("all", values, or names matched case-insensitively) in a
+    volume's label table (``volume.labels``; a :class:`~anatomesh.core.model.volume.Volume`)."""
     if wanted in (None, "all", ["all"]):
         return None
     table = volume.labels or {}

@@ -61,7 +61,7 @@ def check_gain(gain, n: int) -> np.ndarray:
 
 def precision_dtype(precision: str) -> np.dtype:
     """``"float64"`` (default: results match the slow references to ~1e-13 mm) or ``"float32"``
-    (live sliders: ~2x faster, ~1e-4 mm, the precision Blender stores positions in)."""
+    (live sliders: faster, ~1e-4 mm, the precision Blender stores positions in)."""
     if precision not in PRECISIONS:
         raise AnatomeshError(f"precision must be 'float64' or 'float32', got {precision!r}")
     return np.dtype(PRECISIONS[precision])

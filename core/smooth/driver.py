@@ -123,7 +123,7 @@ def smooth_surfaces(surfaces: SurfaceSet, method: str = DEFAULT, *, constraint="
     structure : MeshStructure, optional
         The neighbourhoods of ``surfaces.faces``, if already built.
     precision : "float64" or "float32"
-        Arithmetic of the Taubin/Laplacian passes (float32: live sliders, ~2x faster).
+        Arithmetic of the Taubin/Laplacian passes (float32: live sliders, faster).
 
     Returns
     -------

@@ -64,7 +64,7 @@ def laplacian(vertices, faces, *, iterations: int = 10, lam: float = 0.5, weight
     rings : 1 or 2 — neighbourhood (the 2-ring smooths faster)
     constraint, gain, face_groups, structure, progress : see the module docstring.
     precision : "float64" (default) or "float32" — the arithmetic of the uniform 1-ring passes:
-        float32 is ~2x faster (live sliders) and within ~1e-4 mm of float64; other weights and
+        float32 is faster (live sliders) and within ~1e-4 mm of float64; other weights and
         rings always run in float64.
 
     Returns (N, 3) positions, the dtype of ``vertices``.

@@ -185,7 +185,7 @@ def _solve(m: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``m x = b`` for the small (R, R) symmetric system of the volume offsets: Cholesky when
     ``m`` is positive definite (every cluster of touching regions reaches the background), else
     least squares. Gaussian elimination in a numba kernel, not LAPACK: BLAS threads woken next
-    to numba's own cost 50-150 ms per call on two cores against ~1 ms here."""
+    to numba's own cost far more per call than the solve itself."""
     x = _gk.solve_spd(np.ascontiguousarray(m, np.float64), np.ascontiguousarray(b, np.float64))
     if np.all(np.isfinite(x)):
         return x

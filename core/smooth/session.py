@@ -118,7 +118,7 @@ class SmoothingSession:
     def face_groups(self) -> Optional[np.ndarray]:
         """The junction groups of a label map's set: its (M, 2) ``face_labels``, which the
         feature rings compare as unordered pairs (the groups of :func:`face_groups_of` without
-        building them: 8 bytes a face and ~0.3 s on an 834x512x512 map); None otherwise."""
+        building them, 8 bytes a face); None otherwise."""
         return self.surfaces.face_labels if self.has_lattice else None
 
     def regions(self) -> VolumeRegions:

@@ -24,14 +24,14 @@ def torus(n=24, m=16, R=40.0, r=10.0):
 def bridge(addon):
     from importlib import import_module
 
-    return import_module(addon.__name__ + ".addon.bridge")
+    return import_module(addon.__name__ + ".addon.scene.bridge")
 
 
 @pytest.fixture
 def scn(addon):
     from importlib import import_module
 
-    return import_module(addon.__name__ + ".addon.scene")
+    return import_module(addon.__name__ + ".addon.scene.objects")
 
 
 def test_round_trip_keeps_arrays_and_derives_edges(bridge, empty_scene):
@@ -159,7 +159,7 @@ def test_vertex_colors_become_the_active_colour_attribute(addon, empty_scene):
     import numpy as np
     from importlib import import_module
 
-    scene = import_module(addon.__name__ + ".addon.scene")
+    scene = import_module(addon.__name__ + ".addon.scene.objects")
     v = np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10]], np.float32)
     f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]], np.int32)
     srgb = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0.5]], np.float32)

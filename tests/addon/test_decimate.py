@@ -17,7 +17,7 @@ from anatomesh.core.geometry.topology import topology
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.bridge"], sys.modules[name + ".addon.decimation"]
+    return sys.modules[name + ".addon.scene.bridge"], sys.modules[name + ".addon.operators.decimate"]
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from helpers.meshes import box
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.scene"], sys.modules[name + ".addon.bridge"]
+    return sys.modules[name + ".addon.scene.objects"], sys.modules[name + ".addon.scene.bridge"]
 
 
 def _object(mods, name, v, f):

@@ -51,7 +51,7 @@ def test_no_wheels_zip_installs_and_enables(tmp_path):
     table = str(shared("totalsegmentator", "label_names_total_and_total_mr.json"))
     (zip_path,) = build_extension.build(tmp_path / "dist", wheels=False, work=tmp_path / "work")
     names = zipfile.ZipFile(zip_path).namelist()
-    assert "blender_manifest.toml" in names and "addon/operators/scan.py" in names and "core/model/mesh.py" in names and "app/run.py" in names
+    assert "blender_manifest.toml" in names and "addon/operators/scan.py" in names and "core/model/mesh.py" in names and "app/flow/run.py" in names
     assert not any(n.startswith(("tests/", "benchmarks/", "tools/", "data/", "examples/", ".")) for n in names)
     assert not any("__pycache__" in n for n in names)
     script = textwrap.dedent(f"""

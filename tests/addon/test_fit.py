@@ -17,7 +17,7 @@ from helpers.meshes import box
 
 @pytest.fixture
 def blocks(empty_scene, addon):
-    scene_mod = sys.modules[addon.__name__ + ".addon.scene"]
+    scene_mod = sys.modules[addon.__name__ + ".addon.scene.objects"]
     coll = scene_mod.new_collection("blocks")
     objs = {}
     for name, lo, hi in (("long", (0, 0, 0), (100, 40, 30)), ("small", (200, 0, 0), (230, 30, 30))):
@@ -30,7 +30,7 @@ def blocks(empty_scene, addon):
 
 def test_cut_to_fit_button_splits_the_long_block_only(blocks, addon):
     coll, objs = blocks
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     fit = bpy.context.scene.anatomesh_fit
     assert tuple(fit.size) == pytest.approx((180, 180, 180)) and not fit.connectors
     assert bpy.ops.anatomesh.print_fit(size=(60, 60, 60)) == {"FINISHED"}

@@ -22,7 +22,7 @@ LABELS = ["liver", "gallbladder", "spleen", "lung_lower_lobe_left"]
 
 @pytest.fixture(scope="module")
 def core(addon):
-    return importlib.import_module(addon.__name__ + ".app.run")
+    return importlib.import_module(addon.__name__ + ".app.flow.run")
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +69,7 @@ def test_blend_vertices_are_the_written_surfaces(made, addon):
     from anatomesh.core.io.mesh_files import read_stl
 
     result, out = made
-    bridge = importlib.import_module(addon.__name__ + ".addon.bridge")
+    bridge = importlib.import_module(addon.__name__ + ".addon.scene.bridge")
     bpy.ops.wm.open_mainfile(filepath=str(out / "example_seg.blend"))
     for s in result.report["surfaces"]:
         o = bpy.data.objects[s["name"]]

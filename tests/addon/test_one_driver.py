@@ -1,7 +1,7 @@
 """One smoothing in every door: the Blender operators give the command line's surfaces.
 
 The same settings through ``bpy.ops.anatomesh`` (extraction with the default, the Smooth operator
-with overrides) and through :func:`anatomesh.app.run.run` give the same vertices (1e-3 mm), on the
+with overrides) and through :func:`anatomesh.app.flow.run.run` give the same vertices (1e-3 mm), on the
 41- and 61-label TotalSegmentator maps; after smoothing in Blender the print checks find no face
 crossing another, within a part or between parts.
 """
@@ -22,8 +22,8 @@ MAPS = {41: ("totalsegmentator", "example_seg.nii.gz"),
 
 def _cli(addon, seg, table, tmp_path, **smoothing):
     """The command line's surfaces for these settings, by name (the add-on's own copy of app)."""
-    app_run = importlib.import_module(addon.__name__ + ".app.run")
-    Recipe = importlib.import_module(addon.__name__ + ".app.recipe").Recipe
+    app_run = importlib.import_module(addon.__name__ + ".app.flow.run")
+    Recipe = importlib.import_module(addon.__name__ + ".app.flow.recipe").Recipe
     res = app_run.run(Recipe(input=seg, label_table=table, out_dir=str(tmp_path), formats=["stl"],
                              **smoothing))
     return {m.name: m.vertices for m in res.surfaces}
@@ -35,7 +35,7 @@ def _ui(bridge, coll):
 
 @pytest.mark.parametrize("labels", [41, 61])
 def test_extraction_default_equals_the_cli_default(addon, empty_scene, tmp_path, labels):
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     seg, table = str(shared(*MAPS[labels])), str(shared(*TABLE))
     assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=True) == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
@@ -46,7 +46,7 @@ def test_extraction_default_equals_the_cli_default(addon, empty_scene, tmp_path,
 
 
 def test_smooth_operator_overrides_equal_the_cli_flags(addon, empty_scene, tmp_path):
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     seg, table = str(shared(*MAPS[41])), str(shared(*TABLE))
     assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=True) == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
@@ -58,7 +58,7 @@ def test_smooth_operator_overrides_equal_the_cli_flags(addon, empty_scene, tmp_p
 
 
 def test_no_crossing_faces_after_smoothing_in_blender(addon, empty_scene):
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     Mesh = importlib.import_module(addon.__name__ + ".core.model.mesh").Mesh
     check_parts = importlib.import_module(addon.__name__ + ".core.printing.checks").check_parts
     seg, table = str(shared(*MAPS[61])), str(shared(*TABLE))
@@ -78,14 +78,14 @@ def test_decimate_apply_equals_the_cli_decimation(addon, empty_scene, tmp_path, 
     --decimate`` / ``--target-faces`` (capped at one voxel's error like the command)."""
     from scipy.spatial import cKDTree
 
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     seg, table = str(shared(*MAPS[labels])), str(shared(*TABLE))
     assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=True) == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
     assert bpy.ops.anatomesh.decimate_apply(collection=coll.name, **target) == {"FINISHED"}
     flags = dict(decimate=target["ratio"]) if "ratio" in target else dict(target_faces=target["faces"])
-    app_run = importlib.import_module(addon.__name__ + ".app.run")
-    Recipe = importlib.import_module(addon.__name__ + ".app.recipe").Recipe
+    app_run = importlib.import_module(addon.__name__ + ".app.flow.run")
+    Recipe = importlib.import_module(addon.__name__ + ".app.flow.recipe").Recipe
     res = app_run.run(Recipe(input=seg, label_table=table, out_dir=str(tmp_path), formats=["stl"], **flags))
     cli = {m.name: m for m in res.surfaces}
     ui = {o.name: o for o in coll.objects}

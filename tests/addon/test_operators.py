@@ -44,7 +44,7 @@ def volume(seg_path, table_path):
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.bridge"], sys.modules[name + ".addon.live"]
+    return sys.modules[name + ".addon.scene.bridge"], sys.modules[name + ".addon.operators.smooth"]
 
 
 @pytest.fixture

@@ -14,8 +14,8 @@ from helpers.meshes import icosphere
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.scene"], sys.modules[name + ".addon.paint"], \
-        sys.modules[name + ".addon.bridge"]
+    return sys.modules[name + ".addon.scene.objects"], sys.modules[name + ".addon.operators.paint"], \
+        sys.modules[name + ".addon.scene.bridge"]
 
 
 @pytest.fixture

@@ -16,7 +16,8 @@ from anatomesh.core.extract.isosurface import isosurface
 
 @pytest.fixture
 def mods(addon):
-    return sys.modules[addon.__name__ + ".addon.bridge"], importlib.import_module(addon.__name__ + ".addon.live_iso")
+    return (sys.modules[addon.__name__ + ".addon.scene.bridge"],
+            importlib.import_module(addon.__name__ + ".addon.operators.isovalue"))
 
 
 def _read(path, **kw):
@@ -89,7 +90,7 @@ def test_live_isovalue_redraws(empty_scene, mods, addon):
 
 
 def test_recipe_round_trip_keeps_preprocess(empty_scene, addon, tmp_path):
-    recipes = importlib.import_module(addon.__name__ + ".app.recipe")
+    recipes = importlib.import_module(addon.__name__ + ".app.flow.recipe")
     _read(shared("pyradiomics_brain1", "brain1_label.nrrd"))
     p = empty_scene.anatomesh_preprocess
     p.interpolate, p.fill_cavities, p.close_handles = True, True, 4.0

@@ -23,13 +23,13 @@ TABLE = str(SAMPLE / "label_names_total_and_total_mr.json")
 
 @pytest.fixture
 def bridge(addon):
-    return sys.modules[addon.__name__ + ".addon.bridge"]
+    return sys.modules[addon.__name__ + ".addon.scene.bridge"]
 
 
 def _cli(addon, tmp_path, **settings):
     """The command line's run for these settings (the add-on's own copy of app)."""
-    app_run = importlib.import_module(addon.__name__ + ".app.run")
-    Recipe = importlib.import_module(addon.__name__ + ".app.recipe").Recipe
+    app_run = importlib.import_module(addon.__name__ + ".app.flow.run")
+    Recipe = importlib.import_module(addon.__name__ + ".app.flow.recipe").Recipe
     return app_run.run(Recipe(input=SEG, label_table=TABLE, out_dir=str(tmp_path), formats=["stl"], **settings))
 
 

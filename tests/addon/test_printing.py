@@ -18,7 +18,7 @@ from helpers.meshes import box
 @pytest.fixture
 def mods(addon):
     name = addon.__name__
-    return sys.modules[name + ".addon.scene"], sys.modules[name + ".addon.printing"]
+    return sys.modules[name + ".addon.scene.objects"], sys.modules[name + ".addon.operators.print_check"]
 
 
 @pytest.fixture

@@ -11,7 +11,7 @@ from conftest import shared  # tests/conftest.py
 
 @pytest.fixture(scope="module")
 def recipes(addon):
-    return importlib.import_module(addon.__name__ + ".app.recipe")
+    return importlib.import_module(addon.__name__ + ".app.flow.recipe")
 
 
 @pytest.fixture
@@ -115,3 +115,102 @@ def test_panel_fields_describe_themselves_with_the_settings_own_help(empty_scene
     assert rna("anatomesh_decimate", "max_error") == help_of("max_error")
     assert rna("anatomesh_print", "min_wall") == help_of("min_wall")
     assert rna("anatomesh_print_tools", "drain_diameter") == help_of("drain_diameter", "0: the printer profile's")
+
+
+def _mod(addon, name):
+    return importlib.import_module(f"{addon.__name__}.{name}")
+
+
+class _Layout:
+    """Records what a panel draws: ``(box label, property name)`` rows."""
+
+    def __init__(self, rows=None, box=""):
+        self.rows, self.box_label = (rows if rows is not None else []), box
+
+    def box(self):
+        return _Layout(self.rows)
+
+    def label(self, text="", **_):
+        self.box_label = text
+
+    def column(self, **_):
+        return _Layout(self.rows, self.box_label)
+
+    def prop(self, data, name, **_):
+        self.rows.append((self.box_label, name))
+
+
+def test_a_new_setting_reaches_the_flags_the_recipe_file_and_the_blender_panel(addon, empty_scene):
+    """A setting added by one definition (a fixture's field) is a command-line flag, a recipe-file
+    key and a Blender property drawn in the Settings panel, with one help text, default and unit;
+    the property's value goes into the recipe the add-on runs and back."""
+    import argparse
+    import dataclasses
+
+    settings, recipe = _mod(addon, "app.flow.settings"), _mod(addon, "app.flow.recipe")
+    props, panels = _mod(addon, "addon.operators.setting_props"), _mod(addon, "addon.ui.panels")
+    ops_recipe = _mod(addon, "addon.operators.recipe")
+    extended = dataclasses.make_dataclass("Extended", [(
+        "sharpness", float, settings.setting(0.5, "smoothing", "sharpness", "float", "how sharp the edges stay",
+                                             unit="mm", flag="--sharpness", metavar="MM", low=0, high=2))],
+        bases=(recipe.Recipe,))
+    parser = argparse.ArgumentParser()
+    _mod(addon, "app.cli.settings_args").add_setting_args(parser, ["sharpness"], recipe_type=extended)
+    assert "--sharpness MM how sharp the edges stay (mm); default 0.5" in " ".join(parser.format_help().split())
+    assert "sharpness = 0.5" in settings.to_toml(extended(input="/a.nii.gz")).split("[smoothing]")[1]
+
+    group = props.settings_group(extended, ops_recipe.PANEL_FIELDS + ops_recipe.NOT_IN_BLENDER,
+                                 name="ANATOMESH_PG_test_extended")
+    bpy.utils.register_class(group)
+    try:
+        bpy.types.Scene.anatomesh_test = bpy.props.PointerProperty(type=group)
+        rna = group.bl_rna.properties["sharpness"]
+        assert rna.description == "How sharp the edges stay, mm" and rna.default == 0.5
+        assert (rna.hard_min, rna.hard_max, rna.unit) == (0.0, 2.0, "LENGTH")
+        layout = _Layout()
+        panels.draw_settings(layout, empty_scene.anatomesh_test, extended)
+        assert ("Smoothing", "sharpness") in layout.rows
+        empty_scene.anatomesh_test.sharpness = 0.25
+        r = extended()
+        props.group_to_recipe(empty_scene.anatomesh_test, r)
+        assert r.sharpness == 0.25
+        r.sharpness = 1.5
+        props.recipe_to_group(r, empty_scene.anatomesh_test)
+        assert empty_scene.anatomesh_test.sharpness == 1.5
+    finally:
+        del bpy.types.Scene.anatomesh_test
+        bpy.utils.unregister_class(group)
+
+
+def test_every_setting_is_in_a_panel_or_says_why_not(addon, empty_scene, recipes):
+    """Each Recipe field is held by exactly one of: a hand-made panel, the generated Settings
+    panel, or the list of the command line's file-only settings."""
+    import dataclasses
+
+    ops_recipe = _mod(addon, "addon.operators.recipe")
+    generated = set(empty_scene.anatomesh_recipe.fields)
+    hand, cli_only = set(ops_recipe.PANEL_FIELDS), set(ops_recipe.NOT_IN_BLENDER)
+    names = {f.name for f in dataclasses.fields(recipes.Recipe)}
+    assert not (hand & generated or hand & cli_only or generated & cli_only)
+    assert hand | generated | cli_only == names
+    layout = _Layout()
+    _mod(addon, "addon.ui.panels").draw_settings(layout, empty_scene.anatomesh_recipe)
+    assert {name for _, name in layout.rows} == generated
+
+
+def test_generated_settings_go_into_the_recipe_and_back(empty_scene, recipes, seg_path, tmp_path):
+    assert bpy.ops.anatomesh.import_scan(filepath=seg_path, extract=False) == {"FINISHED"}
+    g = empty_scene.anatomesh_recipe
+    g.cap, g.lod, g.web_levels, g.margins, g.distance_to = False, 3, 1, "[1.0, 4.0]", "liver"
+    path = tmp_path / "generated.toml"
+    assert bpy.ops.anatomesh.recipe_save(filepath=str(path)) == {"FINISHED"}
+    r = recipes.load_recipe(path)
+    assert (r.cap, r.lod, r.web_levels, r.margins, r.distance_to) == (False, 3, 1, [1.0, 4.0], "liver")
+    assert r.volume_index is None and r.render_size == [960, 540]  # unset / default stay so
+    g.cap, g.lod, g.margins = True, 0, ""
+    assert bpy.ops.anatomesh.recipe_load(filepath=str(path)) == {"FINISHED"}
+    assert (g.cap, g.lod, g.margins) == (False, 3, "[1.0, 4.0]")
+    g.margins = "[1.0, oops]"
+    with pytest.raises(RuntimeError, match=r"--margins must be a list of distances"):
+        bpy.ops.anatomesh.recipe_save(filepath=str(tmp_path / "bad.toml"))
+    assert not (tmp_path / "bad.toml").exists()

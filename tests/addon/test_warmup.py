@@ -14,7 +14,7 @@ from conftest import SAMPLE, shared
 
 @pytest.fixture
 def warmup(addon):
-    mod = sys.modules[addon.__name__ + ".addon.warmup"]
+    mod = sys.modules[addon.__name__ + ".addon.operators.warmup"]
     yield mod
     mod.stop()
 
@@ -94,8 +94,8 @@ def test_smoothing_before_its_kernels_are_compiled_waits_and_never_runs_twice(wa
     operator, a second run (which lists the candidate pairs), once "smoothing" is."""
     import numpy as np
 
-    live = sys.modules[addon.__name__ + ".addon.live"]
-    bridge = sys.modules[addon.__name__ + ".addon.bridge"]
+    live = sys.modules[addon.__name__ + ".addon.operators.smooth"]
+    bridge = sys.modules[addon.__name__ + ".addon.scene.bridge"]
     warmup.STATE.update(running=True, done=["reading", "label surfaces", "isosurfaces"])
     assert bpy.ops.anatomesh.import_scan(filepath=str(SAMPLE / "example_seg.nii.gz"),
                                          extract=True) == {"FINISHED"}

@@ -15,7 +15,7 @@ RED = (0.9, 0.1, 0.08)
 
 @pytest.fixture
 def organs(empty_scene, addon):
-    scene_mod = sys.modules[addon.__name__ + ".addon.scene"]
+    scene_mod = sys.modules[addon.__name__ + ".addon.scene.objects"]
     coll = scene_mod.new_collection("phantom")
     v, f = icosphere(3, 20.0)
     tumour = scene_mod.add_surface(coll, "tumour", v, f, {"anatomesh_value": 1, "anatomesh_name": "tumour"},

@@ -10,7 +10,7 @@ from conftest import SAMPLE
 from helpers.meshes import box
 
 from anatomesh.app.cli import main
-from anatomesh.app.recipe import Recipe, dump_recipe, recipe_from_text
+from anatomesh.app.flow.recipe import Recipe, dump_recipe, recipe_from_text
 from anatomesh.core.export.mesh_files import write_stl
 from anatomesh.core.io.mesh_files import read_stl
 from anatomesh.core.model.mesh import Mesh

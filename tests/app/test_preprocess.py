@@ -11,8 +11,8 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from anatomesh.app.cli import main
-from anatomesh.app.recipe import Recipe, dump_recipe, load_recipe, recipe_from_text
-from anatomesh.app.run import run as run_recipe
+from anatomesh.app.flow.recipe import Recipe, dump_recipe, load_recipe, recipe_from_text
+from anatomesh.app.flow.run import run as run_recipe
 from anatomesh.core.export.gltf import read_glb
 from anatomesh.core.extract.isosurface import isosurface
 from anatomesh.core.geometry.topology import topology

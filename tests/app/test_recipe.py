@@ -6,8 +6,8 @@ import tomllib
 import pytest
 
 from anatomesh.core.model.errors import AnatomeshError
-from anatomesh.app.recipe import Recipe
-from anatomesh.app.recipe import SECTIONS, dump_recipe, load_recipe, recipe_from_text
+from anatomesh.app.flow.recipe import Recipe
+from anatomesh.app.flow.recipe import SECTIONS, dump_recipe, load_recipe, recipe_from_text
 
 
 def full_recipe(tmp_path) -> Recipe:

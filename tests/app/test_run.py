@@ -14,9 +14,9 @@ from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.io.mesh_files import read_stl
 from anatomesh.core.export.threemf import read_3mf
 from anatomesh.core.export.gltf import read_glb
-from anatomesh.app.run import run
-from anatomesh.app.recipe import Recipe
-from anatomesh.app.recipe import load_recipe
+from anatomesh.app.flow.run import run
+from anatomesh.app.flow.recipe import Recipe
+from anatomesh.app.flow.recipe import load_recipe
 from helpers.readback import pinch_volume_bound
 from conftest import SAMPLE
 
@@ -174,7 +174,7 @@ def test_bad_settings_fail_before_reading(tmp_path, monkeypatch, changes, words)
     def never(*args, **kwargs):
         raise AssertionError("the input was read")
 
-    monkeypatch.setattr("anatomesh.app.run.load", never)
+    monkeypatch.setattr("anatomesh.core.io.load", never)
     out = tmp_path / "never"
     with pytest.raises(AnatomeshError) as err:
         run(Recipe(input=SEG, out_dir=str(out), **changes))
@@ -187,7 +187,7 @@ def test_existing_results_are_refused_before_reading(decimated, monkeypatch):
     def never(*args, **kwargs):
         raise AssertionError("the input was read")
 
-    monkeypatch.setattr("anatomesh.app.run.load", never)
+    monkeypatch.setattr("anatomesh.core.io.load", never)
     with pytest.raises(AnatomeshError, match="--overwrite"):
         run(Recipe(input=SEG, out_dir=str(decimated.report_path.parent), labels=["spleen"]))
 
@@ -313,3 +313,26 @@ def test_one_shot_runs_let_go_of_the_voxels_before_smoothing(tmp_path):
     res = run(Recipe(input=SEG, out_dir=str(tmp_path / "pre"), labels=TRIO, fill_cavities=True),
               keep_voxels=False)
     assert res.volume.data.strides != (0, 0, 0)  # the preprocessing's measures read them later
+
+
+def test_specks_are_dropped_where_they_are_made_and_counted():
+    """A ball (radius 6 voxels) and one voxel barely above the level: the voxel's blob (far under
+    0.1 voxel) is dropped right after extraction, the ball kept whole; a label map's shells come
+    back as they are."""
+    from anatomesh.app.flow import stages
+    from anatomesh.core.model.volume import Volume
+
+    z, y, x = np.mgrid[:24, :24, :24]
+    data = np.where((x - 12) ** 2 + (y - 12) ** 2 + (z - 12) ** 2 <= 36, 1.0, 0.0).astype(np.float32)
+    data[2, 2, 2] = 0.51
+    raw = stages.extract(Volume(data, np.diag([2.0, 2.0, 2.0, 1.0])), Recipe(input="x", levels=[0.5]))
+    clean = stages.drop_specks(raw)
+    assert raw.n_faces - clean.n_faces == 8  # the blob: 8 triangles around one corner
+    (ball,) = clean.shells()
+    assert topology(ball.vertices, ball.faces).components == 1
+    assert any("1 speck(s)" in w for w in clean.warnings)
+    from anatomesh.core.model.labels import LabelInfo
+
+    label_map = Volume((data == 1).astype(np.uint8), np.eye(4), labels={1: LabelInfo(1, "ball", (1, 0, 0))})
+    labels = stages.extract(label_map, Recipe(input="x"))
+    assert stages.drop_specks(labels) is labels

@@ -14,8 +14,8 @@ import pydicom
 import pytest
 
 from anatomesh.app.cli import main
-from anatomesh.app.recipe import Recipe, load_recipe
-from anatomesh.app.run import run
+from anatomesh.app.flow.recipe import Recipe, load_recipe
+from anatomesh.app.flow.run import run
 from anatomesh.core.geometry.spatial import TriangleGrid
 from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.mesh import signed_volume

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from anatomesh.app.cli.settings_args import add_setting_args
-from anatomesh.app.recipe import (Recipe, dump_recipe, recipe_from_text, sections, setting,
-                                  settings_table)
+from anatomesh.app.flow.recipe import Recipe, dump_recipe, recipe_from_text
+from anatomesh.app.flow.settings import sections, setting, settings_table
 from anatomesh.core.model.errors import AnatomeshError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -41,7 +41,7 @@ def test_a_new_setting_reaches_the_flags_the_recipe_file_and_the_docs(extended):
 
 
 def test_the_docs_settings_table_is_the_definitions():
-    assert settings_table() in (REPO / "docs" / "SETTINGS.md").read_text(encoding="utf-8")
+    assert settings_table(Recipe) in (REPO / "docs" / "SETTINGS.md").read_text(encoding="utf-8")
 
 
 def test_every_flag_made_from_a_definition_sets_its_field():

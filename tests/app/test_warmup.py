@@ -13,7 +13,7 @@ import numpy as np
 from conftest import SAMPLE
 from numba.core.dispatcher import Dispatcher
 
-from anatomesh.app import warmup
+from anatomesh.app.warmup import compile as warmup
 
 _ORIGINAL = Dispatcher._compile_for_args
 
@@ -79,7 +79,7 @@ def test_inspect_loads_no_smoothing_decimation_or_print_code():
     heavy = [m for m in loaded if m.startswith(("anatomesh.core.smooth", "anatomesh.core.decimate",
                                                  "anatomesh.core.extract", "anatomesh.core.export",
                                                  "anatomesh.core.printing.checks",
-                                                 "anatomesh.core.printing.fixes", "anatomesh.app.run"))]
+                                                 "anatomesh.core.printing.fixes", "anatomesh.app.flow.run"))]
     assert heavy == []
     assert "anatomesh.core.io.nifti" in loaded  # it did read the file
 
@@ -132,7 +132,7 @@ def test_two_lanes_share_a_cold_first_run_and_the_first_extraction_compiles_noth
     assert starts[:2] == ["warmup 1/2 reading", "warmup 2/2 label surfaces"]
     by_lane = re.search(r"by lane: (\d+), (\d+)", first.stdout).groups()
     assert all(int(n) > 0 for n in by_lane), first.stdout  # both lanes compiled a share
-    code = ("from anatomesh.app.warmup import counting_compiles\n"
+    code = ("from anatomesh.app.warmup.compile import counting_compiles\n"
             "from anatomesh.core.io import load\n"
             "from anatomesh.core.extract.multilabel import label_surfaces\n"
             "with counting_compiles() as names:\n"
@@ -154,12 +154,12 @@ def test_after_their_steps_label_maps_extract_and_smooth_compiling_nothing(tmp_p
     warm = _run(["-m", "anatomesh.app.warmup", "--steps", steps, "--lanes", "1"], cache)
     assert warm.returncode == 0, warm.stderr
     assert _compiled(warm.stdout) >= 10
-    code = ("from anatomesh.app.warmup import counting_compiles\n"
+    code = ("from anatomesh.app.warmup.compile import counting_compiles\n"
             "from anatomesh.core.io import load\n"
             "from anatomesh.core.extract import multilabel\n"
             "from anatomesh.core.smooth.session import SmoothingSession\n"
-            "from anatomesh.app.stages import smoothing\n"
-            "from anatomesh.app.recipe import Recipe\n"
+            "from anatomesh.app.flow.stages import smoothing\n"
+            "from anatomesh.app.flow.recipe import Recipe\n"
             f"vol = load({str(SAMPLE / 'example_seg.nii.gz')!r})\n"
             "with counting_compiles() as names:\n"
             "    surfaces = multilabel.label_surfaces(vol)\n"

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from anatomesh.app.recipe import Recipe
-from anatomesh.app.run import run
-from anatomesh.app.web import WebModel, write_page
-from anatomesh.app.web_models import mesh_levels
-from anatomesh.app.web_pack import display_vertices
+from anatomesh.app.flow.recipe import Recipe
+from anatomesh.app.flow.run import run
+from anatomesh.app.web.page import WebModel, write_page
+from anatomesh.app.web.models import mesh_levels
+from anatomesh.app.web.pack import display_vertices
 from conftest import REPO, SAMPLE
 from helpers.browser import Page, browser, chroma, hue_saturation, lit_residual
 

@@ -9,8 +9,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from anatomesh.app.web import VIEWER_DIR, VIEWER_FILES, WebModel, write_page
-from anatomesh.app.web_pack import display_vertices
+from anatomesh.app.web.page import VIEWER_DIR, VIEWER_FILES, WebModel, write_page
+from anatomesh.app.web.pack import display_vertices
 from anatomesh.core.model.mesh import Mesh, surface_area
 from conftest import REPO
 from helpers.meshes import icosphere, torus
@@ -43,7 +43,7 @@ def test_committed_bundle_is_the_build_of_the_lockfile(node, tmp_path):
     assert r.returncode == 0, r.stderr
     for name in VIEWER_FILES:
         assert (tmp_path / name).read_bytes() == (VIEWER_DIR / name).read_bytes(), \
-            f"app/web_viewer/{name} is stale: run `npm ci && npm run build` in web/ and commit it"
+            f"app/web/viewer/{name} is stale: run `npm ci && npm run build` in web/ and commit it"
     lock = json.loads((WEB / "package-lock.json").read_text())["packages"]
     head = (VIEWER_DIR / "viewer.js").read_text(encoding="utf-8").splitlines()[0]
     for lib in ("three", "meshoptimizer"):

@@ -9,9 +9,8 @@ import meshopt
 import numpy as np
 import pytest
 
-from anatomesh.app.web import WebModel, page_paths, write_page
-from anatomesh.app.web_pack import (STEP_MM, LevelPack, display_vertices, encode_mesh,
-                                    quantization_for)
+from anatomesh.app.web.page import WebModel, page_paths, write_page
+from anatomesh.app.web.pack import STEP_MM, LevelPack, display_vertices, encode_mesh, quantization_for
 from anatomesh.core.export.gltf import AXES
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh

@@ -8,8 +8,8 @@ import json
 
 import pytest
 
-from anatomesh.app.recipe import Recipe
-from anatomesh.app.run import run
+from anatomesh.app.flow.recipe import Recipe
+from anatomesh.app.flow.run import run
 from conftest import REPO, shared
 from helpers.browser import Page, browser
 
