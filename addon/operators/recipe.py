@@ -12,7 +12,7 @@ from .setting_props import group_to_recipe, recipe_to_group
 #: the recipe settings the hand-made panels hold (Import, Smooth, Decimate, Print, Print Tools,
 #: Cut to Fit, Export, Preprocess); every other one is a generated property in the Settings
 #: panel (``Scene.anatomesh_recipe``, :mod:`.setting_props`) unless it is in :data:`NOT_IN_BLENDER`
-PANEL_FIELDS = ("input", "series", "label_table", "labels", "levels", "space", "grid",
+PANEL_FIELDS = ("input", "series", "label_table", "labels", "levels", "level_names", "space", "grid",
                 "smooth", "iterations", "lam", "mu", "max_deviation", "damping_distance", "staircase",
                 "decimate", "target_faces", "max_error", "check", "profile", "min_wall", "min_gap",
                 "fuse", "thicken", "clearance", "hollow", "drain_holes", "drain_diameter", "connectors",
@@ -38,6 +38,7 @@ def recipe_from_scene(context):
         r.labels = "all" if len(chosen) == len(s.labels) else chosen
     elif s.kind == "LEVELS":
         r.levels = [float(item.value) for item in s.levels if item.include]
+        r.level_names = [item.name for item in s.levels if item.include]
     coll = active_scan(context)
     st = coll.anatomesh if coll is not None else s
     smoothing_recipe(_smoothing_shown(coll, st), r)
@@ -172,9 +173,10 @@ def apply_recipe(context, recipe, extract: bool = False) -> None:
             item.include = wanted is None or int(item.value) in wanted
     elif recipe.levels:
         s.levels.clear()
-        for lv in recipe.levels:
+        names = recipe.level_names or [f"level {lv:g}" for lv in recipe.levels]
+        for lv, name in zip(recipe.levels, names):
             item = s.levels.add()
-            item.value, item.name = float(lv), f"level {lv:g}"
+            item.value, item.name = float(lv), name
     if extract:
         bpy.ops.anatomesh.extract()
 
@@ -199,7 +201,7 @@ def preprocess_to_recipe(p, recipe) -> None:
     recipe.close_handles = float(p.close_handles) if p.close_handles > 0 else None
     recipe.fuzzy = [float(p.fuzzy_low), float(p.fuzzy_high), float(p.fuzzy_count)] if p.fuzzy else None
     if recipe.fuzzy is not None:
-        recipe.levels = []
+        recipe.levels, recipe.level_names = [], []
 
 
 def preprocess_from_recipe(p, recipe) -> None:

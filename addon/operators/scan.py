@@ -122,6 +122,7 @@ def extraction_recipe(settings, volume, labels_text: str = "", levels_text: str 
 
             raise AnatomeshError("no isovalue chosen; tick or add a level", volume.meta.get("source"))
         recipe.levels = [float(v) for v, _, _ in chosen]
+        recipe.level_names = [str(name) for _, name, _ in chosen]
     return recipe, {_key(v): (name, tuple(color)) for v, name, color in chosen}
 
 

@@ -54,8 +54,8 @@ def add_parser(subs) -> argparse.ArgumentParser:
 
 
 def _surface_args(m) -> None:
-    m.add_argument("--level", type=float, action="append", metavar="VALUE",
-                   help="isovalue for a scalar scan (repeat for several surfaces)")
+    m.add_argument("--level", action="append", metavar="[NAME:]VALUE",
+                   help="isovalue for a scalar scan, optionally named (bone:300); repeat for several surfaces")
     m.add_argument("--labels", help="all (default), or values/names: 1,5,7 or liver,spleen")
     m.add_argument("--format", help="comma list of stl, ply, obj, 3mf, dicom, glb, blend, png, web (default "
                                     "stl); 3mf also writes one combined print file, dicom one Encapsulated "
@@ -112,7 +112,7 @@ def recipe_from_args(args) -> Recipe:
     if args.out is not None:
         recipe.out_dir = args.out
     if args.level:
-        recipe.levels = list(args.level)
+        recipe.levels, recipe.level_names = _levels(args.level)
     if args.labels is not None:
         recipe.labels = split_list(args.labels) if args.labels.strip().lower() != "all" else "all"
     if args.format is not None:
@@ -136,6 +136,20 @@ def recipe_from_args(args) -> Recipe:
     if not recipe.out_dir:
         raise AnatomeshError("no output folder: give --out DIR (or a --recipe whose [output] has dir)")
     return recipe
+
+
+def _levels(items):
+    """``--level`` values (``300`` or ``bone:300``) → the levels and, when any is named, their
+    names (an unnamed one keeps the default name)."""
+    from ..pictures.gallery import parse_levels
+
+    parts = [p.strip() for item in items for p in str(item).split(",") if p.strip()]
+    named = [":" in p or "=" in p for p in parts]
+    levels = parse_levels(parts, "--level")
+    if not any(named):
+        return [v for _, v, _ in levels], []
+    names = [name if n else f"isosurface {v:g}" for (name, v, _), n in zip(levels, named)]
+    return [v for _, v, _ in levels], names
 
 
 def cmd_mesh(args) -> int:

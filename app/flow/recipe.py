@@ -137,6 +137,9 @@ class Recipe:
     label_table: Optional[str] = setting(None, "input", "label_table", "path", "label names (JSON, CSV or Slicer colour table)")
     labels: Union[str, List[Union[int, str]]] = setting("all", "input", "labels", "labels", "the labels to mesh")
     levels: List[float] = setting(None, "input", "levels", "floats", "isovalues of a scalar scan", factory=list)
+    level_names: List[str] = setting(None, "input", "level_names", "strs",
+                                     "names of the isosurfaces, one per level (default: isosurface VALUE)",
+                                     factory=list)
     space: str = setting("RAS", "input", "space", "str", "coordinate space of the written vertices",
                          choices=SPACES, flag="--space")
     grid: Optional[str] = setting(None, "input", "grid", "str", "the grid masks or a segmentation are meshed on",
@@ -309,6 +312,9 @@ def check_recipe(recipe: Recipe) -> None:
     read_number_lists(recipe)  # numbers from the flags' texts
     check_preprocess(recipe)
     check_values(recipe)
+    if recipe.level_names and len(recipe.level_names) != len(recipe.levels):
+        raise AnatomeshError(f"level_names names each of the {len(recipe.levels)} levels, got "
+                             f"{len(recipe.level_names)} names")
     if recipe.decimate is not None and recipe.target_faces is not None:
         raise AnatomeshError("give --decimate RATIO or --target-faces N, not both (--max-error MM "
                              "may come with either as a cap on the error)")

@@ -115,6 +115,8 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
     from ...core.extract.isosurface import isosurfaces
 
     meshes = isosurfaces(volume, list(recipe.levels), cap=recipe.cap, progress=progress)
+    for m, name in zip(meshes, recipe.level_names):
+        m.name = name
     return SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
 
 

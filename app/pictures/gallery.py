@@ -59,9 +59,9 @@ def preset_levels(volume: Volume) -> List[Tuple[str, float, Tuple[float, float, 
     return out
 
 
-def parse_levels(items: Sequence[str]) -> List[Tuple[str, float, Tuple[float, float, float]]]:
-    """``["-500", "bone:300", "skin=-500,fat:-100"]`` → named levels (a bare value is named after
-    itself); one-line error for anything else."""
+def parse_levels(items: Sequence[str], flag: str = "--levels") -> List[Tuple[str, float, Tuple[float, float, float]]]:
+    """``["-500", "bone:300", "skin=-500,fat:-100"]`` → named levels (a bare value is named
+    "level"); one-line error naming ``flag`` for anything else."""
     out = []
     for item in items:
         for part in str(item).split(","):
@@ -72,12 +72,12 @@ def parse_levels(items: Sequence[str]) -> List[Tuple[str, float, Tuple[float, fl
             try:
                 v = float(value)
             except ValueError:
-                raise AnatomeshError(f"--levels takes VALUE or NAME:VALUE items, got {part!r}") from None
+                raise AnatomeshError(f"{flag} takes VALUE or NAME:VALUE items, got {part!r}") from None
             if not np.isfinite(v):
-                raise AnatomeshError(f"--levels takes finite values, got {part!r}")
+                raise AnatomeshError(f"{flag} takes finite values, got {part!r}")
             out.append((name.strip() or "level", v, _colour(len(out))))
     if not out:
-        raise AnatomeshError("--levels needs at least one value")
+        raise AnatomeshError(f"{flag} needs at least one value")
     return out
 
 

@@ -295,5 +295,6 @@ def test_preprocess_scalar_scan_equals_run(addon, empty_scene, tmp_path):
     assert max(s["effect"]["max_mm"] for s in steps) > 0
     Recipe = _mod(addon, "app.flow.recipe").Recipe
     res = _mod(addon, "app.flow.run").run(Recipe(input=ct, out_dir=str(tmp_path), levels=[250.0],
+                                                 level_names=["level 250"],  # the panel's row
                                                  resample=[2.0], smooth_volume="gaussian:1"))
     assert _worst(_shown(addon, coll), res.surfaces, "preprocess CT") <= TOL_MM

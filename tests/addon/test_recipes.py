@@ -214,3 +214,20 @@ def test_generated_settings_go_into_the_recipe_and_back(empty_scene, recipes, se
     with pytest.raises(RuntimeError, match=r"--margins must be a list of distances"):
         bpy.ops.anatomesh.recipe_save(filepath=str(tmp_path / "bad.toml"))
     assert not (tmp_path / "bad.toml").exists()
+
+
+def test_level_names_go_into_the_recipe_and_back(empty_scene, recipes, tmp_path):
+    ct = str(shared("totalsegmentator", "example_ct_sm.nii.gz"))
+    assert bpy.ops.anatomesh.import_scan(filepath=ct, extract=False) == {"FINISHED"}
+    s = empty_scene.anatomesh
+    s.levels.clear()
+    for name, value in (("skin", -500.0), ("bone", 300.0)):
+        item = s.levels.add()
+        item.name, item.value, item.include = name, value, True
+    path = tmp_path / "ct.toml"
+    assert bpy.ops.anatomesh.recipe_save(filepath=str(path)) == {"FINISHED"}
+    r = recipes.load_recipe(path)
+    assert (r.levels, r.level_names) == ([-500.0, 300.0], ["skin", "bone"])
+    s.levels.clear()
+    assert bpy.ops.anatomesh.recipe_load(filepath=str(path)) == {"FINISHED"}
+    assert [(i.name, i.value) for i in s.levels] == [("skin", -500.0), ("bone", 300.0)]

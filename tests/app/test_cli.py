@@ -277,3 +277,17 @@ def test_a_bad_flag_value_is_one_line_naming_the_flag(capsys):
     assert main(["mesh", "x.nii.gz", "--out", "o", "--max-deviation", "abc"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--max-deviation" in err[0] and "invalid float value: 'abc'" in err[0]
+
+
+def test_named_levels_name_the_files_and_the_recipe_keeps_them(capsys, tmp_path):
+    code, out, err = run(capsys, "mesh", CT, "--out", tmp_path / "a", "--level", "bone:300", "--level", "-500",
+                         "--smooth", "none")
+    assert code == 0, err
+    assert (tmp_path / "a" / "bone.stl").is_file() and (tmp_path / "a" / "isosurface_-500.stl").is_file()
+    recipe = (tmp_path / "a" / "recipe.toml").read_text()
+    assert 'level_names = ["bone", "isosurface -500"]' in recipe
+    code, out, err = run(capsys, "mesh", "--recipe", tmp_path / "a" / "recipe.toml", "--out", tmp_path / "b")
+    assert code == 0, err
+    assert (tmp_path / "b" / "bone.stl").read_bytes() == (tmp_path / "a" / "bone.stl").read_bytes()
+    code, out, err = run(capsys, "mesh", CT, "--out", tmp_path / "c", "--level", "bone:x")
+    assert code == 2 and "--level takes VALUE or NAME:VALUE items" in err
