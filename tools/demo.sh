@@ -8,7 +8,7 @@
 # only pieces under 100 mm³ are dropped) into ./demo_out/ct/skin.stl and bone.stl.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash tools/setup_env.sh
+bash tools/setup_env.sh demo
 PY="${ANATOMESH_VENV:-.venv}/bin/python"
 OUT="${1:-demo_out}"
 "$PY" -m anatomesh.app.cli inspect data/sample/example_ct_sm.nii.gz
@@ -20,4 +20,4 @@ OUT="${1:-demo_out}"
 echo "demo output in $OUT/: per-organ STL+3MF, example_seg.3mf (all organs), example_seg.glb (+ _lod0..2),"
 echo "web/index.html (double-click it), example_seg.blend + example_seg.png (Cycles), report.json, recipe.toml;"
 echo "ct/skin.stl and ct/bone.stl (the CT's isosurfaces at -500 and 300 HU, ribs kept)"
-echo "run it again from the recipe: anatomesh mesh --recipe $OUT/recipe.toml --overwrite"
+echo "run it again from the recipe: $(dirname "$PY")/anatomesh mesh --recipe $OUT/recipe.toml --overwrite"

@@ -8,7 +8,7 @@ here="$(pwd -P)"
 # package name, as the Blender tests import them (without these, pytest compiles them all
 # itself, on one core: ~9 min of a fresh machine's run)
 export NUMBA_CACHE_DIR="${NUMBA_CACHE_DIR:-$here/build/numba-cache-blender-tests}"
-bash tools/setup_env.sh
+bash tools/setup_env.sh tests
 ext="$here/build/blender-test-extensions/anatomesh_dev"
 mkdir -p "$ext"
 ln -sfn "$here" "$ext/anatomesh"  # as tests/addon/conftest.py links it (a link left by another checkout replaced)

@@ -11,7 +11,10 @@ import dataclasses
 import json
 import math
 import os
-import tomllib
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the same parser, as a package
+    import tomli as tomllib
 from dataclasses import field
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple

@@ -41,8 +41,8 @@ def meshopt_module():
     try:
         import meshopt
     except ImportError:
-        raise AnatomeshError("the web page needs meshoptimizer's Python binding: pip install meshopt "
-                             "(or pip install 'anatomesh[web]')") from None
+        raise AnatomeshError("the web page needs meshoptimizer's Python binding, meshopt (Python 3.11 "
+                             "or newer): pip install meshopt") from None
     return meshopt
 
 
