@@ -20,7 +20,7 @@ from typing import Dict, Iterable, List
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import PropertyGroup
 
-from ...app.flow.settings import KINDS, field_help, option_name, toml_value
+from ...app.flow.settings import KINDS, default_of, field_help, option_name, toml_value
 from ...core.model.errors import AnatomeshError
 
 #: kinds shown as numbers, and the kinds shown as a text
@@ -37,15 +37,11 @@ def _unset(f: dataclasses.Field):
     return float(low) if low_open else None
 
 
-def _default(f: dataclasses.Field):
-    return f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
-
-
 def setting_property(f: dataclasses.Field):
     """The Blender property of one recipe setting (see the module docstring)."""
     m, kind = f.metadata, f.metadata["kind"]
     name = f.name.replace("_", " ").capitalize()
-    default = _default(f)
+    default = default_of(f)
     if kind == "bool":
         return BoolProperty(name=name, default=bool(default), description=field_help(f))
     if m["choices"]:
@@ -105,7 +101,7 @@ def recipe_value(f: dataclasses.Field, value):
             return None
         return int(value) if kind == "int" else float(value)
     if isinstance(value, str) and not value.strip():
-        return _default(f)  # an empty text: the setting's default (None for an optional one)
+        return default_of(f)  # an empty text: the setting's default (None for an optional one)
     if kind in ("bool", "str", "path", "series"):
         return value
     try:

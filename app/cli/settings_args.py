@@ -53,8 +53,3 @@ def help_text(f: dataclasses.Field) -> str:
     if m["kind"] != "bool" and default not in (None, "", dataclasses.MISSING) and "default" not in m["help"]:
         text += f"; default {default}"
     return text.replace("%", "%%")  # argparse formats help with %
-
-
-def setting_flags(recipe_type=Recipe) -> tuple:
-    """The recipe fields that have a flag of their own."""
-    return tuple(f.name for f in dataclasses.fields(recipe_type) if f.metadata["flag"])

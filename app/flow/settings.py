@@ -141,6 +141,11 @@ def sections(settings_type) -> Dict[str, Dict[str, str]]:
     return out
 
 
+def default_of(f: dataclasses.Field):
+    """A setting's default value (made anew for a list setting)."""
+    return f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+
+
 def fields_of(settings_type) -> Dict[str, dataclasses.Field]:
     """The fields of a settings type by name."""
     return {f.name: f for f in dataclasses.fields(settings_type)}
@@ -176,7 +181,7 @@ def settings_table(settings_type) -> str:
     fields = fields_of(settings_type)
     for f in (fields[name] for keys in sections(settings_type).values() for name in keys.values()):
         m = f.metadata
-        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        default = default_of(f)
         rows.append(f"| `[{m['section']}]` | `{m['key']}` | {m['allowed']} | "
                     f"{'' if default in (None, '') else '`' + toml_value(default) + '`'} | {m['unit']} | {m['help']} | "
                     f"{'`' + m['flag'] + '`' if m['flag'] else ''} |")

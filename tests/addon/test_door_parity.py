@@ -38,6 +38,7 @@ from conftest import shared
 from scipy.spatial import cKDTree
 
 from helpers.readback import read_back
+from helpers.selection import select_only
 
 TABLE = ("totalsegmentator", "label_names_total_and_total_mr.json")
 MAPS = {41: ("totalsegmentator", "example_seg.nii.gz"),
@@ -70,14 +71,6 @@ def _scan(scene, n, extract=True):
     seg, table = _paths(n)
     assert bpy.ops.anatomesh.import_scan(filepath=seg, label_table=table, extract=extract) == {"FINISHED"}
     return bpy.data.collections.get(scene.anatomesh.last_collection)
-
-
-def _select(*objs):
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-    for o in objs:
-        o.select_set(True)
-    bpy.context.view_layer.objects.active = objs[0]
 
 
 def _shown(addon, coll):
@@ -157,7 +150,7 @@ def test_hollow_equals_run(addon, empty_scene, tmp_path):
     _scan(empty_scene, 41, extract=False)
     assert bpy.ops.anatomesh.extract(labels=",".join(parts)) == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
-    _select(*coll.objects)
+    select_only(*coll.objects)
     assert bpy.ops.anatomesh.print_hollow(wall=2.0) == {"FINISHED"}
     res = _cli(addon, 41, tmp_path, labels=parts, hollow=2.0)
     assert _worst(_shown(addon, coll), res.surfaces, "hollow 41") <= TOL_MM
@@ -166,7 +159,7 @@ def test_hollow_equals_run(addon, empty_scene, tmp_path):
 @pytest.mark.parametrize("labels", [41, 61])
 def test_connectors_equal_run(addon, empty_scene, tmp_path, labels):
     coll = _scan(empty_scene, labels)
-    _select(coll.objects["vertebrae_L1"], coll.objects["vertebrae_L2"])  # pins on the active: L1
+    select_only(coll.objects["vertebrae_L1"], coll.objects["vertebrae_L2"])  # pins on the active: L1
     assert bpy.ops.anatomesh.print_connectors() == {"FINISHED"}
     res = _cli(addon, labels, tmp_path, connectors=[["vertebrae_L1", "vertebrae_L2"]])
     assert _worst(_shown(addon, coll), res.surfaces, f"connectors {labels}") <= TOL_MM

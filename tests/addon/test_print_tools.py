@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 import pytest
 from conftest import SAMPLE
+from helpers.selection import select_only
 
 from anatomesh.core.geometry.topology import topology
 from anatomesh.core.model.mesh import signed_volume
@@ -39,19 +40,11 @@ def _extract(scene, labels):
     return bpy.data.collections[scene.anatomesh.last_collection]
 
 
-def _select(*objs):
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-    for o in objs:
-        o.select_set(True)
-    bpy.context.view_layer.objects.active = objs[0]
-
-
 def test_fuse_gives_the_cli_solid(addon, empty_scene, tmp_path, bridge):
     coll = _extract(empty_scene, "liver,gallbladder")
     liver, gall = coll.objects["liver"], coll.objects["gallbladder"]
     material = liver.data.materials[0]
-    _select(liver, gall)
+    select_only(liver, gall)
     assert bpy.ops.anatomesh.print_fuse() == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
     assert [o.name for o in coll.objects] == ["liver+gallbladder"]
@@ -70,7 +63,7 @@ def test_fuse_gives_the_cli_solid(addon, empty_scene, tmp_path, bridge):
 
 def test_thicken_gives_the_cli_surfaces(addon, empty_scene, tmp_path, bridge):
     coll = _extract(empty_scene, "rib_left_12,vertebrae_L1")
-    _select(*coll.objects)
+    select_only(*coll.objects)
     empty_scene.anatomesh_print.min_wall = 7.0  # over two of the 3 mm voxels: the rib is thin
     assert bpy.ops.anatomesh.print_thicken() == {"FINISHED"}
     coll = bpy.data.collections[empty_scene.anatomesh.last_collection]
@@ -88,7 +81,7 @@ def test_thicken_gives_the_cli_surfaces(addon, empty_scene, tmp_path, bridge):
 def test_hollow_saves_the_cli_volume(addon, empty_scene, tmp_path, bridge):
     coll = _extract(empty_scene, "liver")
     liver = coll.objects["liver"]
-    _select(liver)
+    select_only(liver)
     assert bpy.ops.anatomesh.print_hollow(wall=2.0) == {"FINISHED"}
     (entry,) = json.loads(liver["anatomesh_fixes"])
     cli = _cli(addon, tmp_path, labels=["liver"], hollow=2.0)
@@ -105,7 +98,7 @@ def test_hollow_saves_the_cli_volume(addon, empty_scene, tmp_path, bridge):
 def test_clearance_and_connectors_on_touching_vertebrae(addon, empty_scene, tmp_path, bridge):
     coll = _extract(empty_scene, "vertebrae_L1,vertebrae_L2")
     l1, l2 = coll.objects["vertebrae_L1"], coll.objects["vertebrae_L2"]
-    _select(l1, l2)
+    select_only(l1, l2)
     assert bpy.ops.anatomesh.print_connectors() == {"FINISHED"}  # pins on the active: L1
     (pins,) = json.loads(l1["anatomesh_fixes"])
     cli = _cli(addon, tmp_path / "c", labels=["vertebrae_L1", "vertebrae_L2"],
@@ -118,7 +111,7 @@ def test_clearance_and_connectors_on_touching_vertebrae(addon, empty_scene, tmp_
     # clearance on a fresh extraction: the same vertices move as with --clearance
     coll = _extract(empty_scene, "vertebrae_L1,vertebrae_L2")
     objs = {o.name.split(".")[0]: o for o in coll.objects}
-    _select(*objs.values())  # the active object's scan is the one pulled apart
+    select_only(*objs.values())  # the active object's scan is the one pulled apart
     assert bpy.ops.anatomesh.print_clearance(clearance=0.3) == {"FINISHED"}
     (entry,) = json.loads(objs["vertebrae_L1"]["anatomesh_fixes"])
     cli = _cli(addon, tmp_path / "s", labels=["vertebrae_L1", "vertebrae_L2"], clearance=0.3)
