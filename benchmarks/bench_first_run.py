@@ -25,9 +25,6 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 SAMPLE = REPO / "data" / "sample" / "example_seg.nii.gz"
-_COLD = tempfile.mkdtemp(prefix="anatomesh_cold_blender_")
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="anatomesh_bench_"))
-os.environ["NUMBA_CACHE_DIR"] = _COLD  # before numba is imported: this process and its children
 
 
 def blender_first_run() -> None:
@@ -44,7 +41,7 @@ def blender_first_run() -> None:
     assert warmup.start(force=True)  # what enabling the extension does in a Blender with a UI
     with counting_compiles() as compiled:  # in Blender's own process
         assert bpy.ops.anatomesh.import_scan(filepath=str(SAMPLE), extract=True) == {"FINISHED"}
-        marks = _wait_for_warmup(bpy.context.scene, warmup, bridge, t0)
+        marks = wait_for_warmup(bpy.context.scene, warmup, bridge, t0)
     total = time.perf_counter() - t0
     print(f"Blender, cold cache ({os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}): "
           f"{marks['objects'][1]} objects of the sample after {marks['objects'][0]:.1f} s "
@@ -54,8 +51,9 @@ def blender_first_run() -> None:
           f"{warmup.STATE['error'] or 'none'}")
 
 
-def _wait_for_warmup(scene, warmup, bridge, t0) -> dict:
-    """Run the add-on's timer until the warm-up ends; the times of the marks."""
+def wait_for_warmup(scene, warmup, bridge, t0) -> dict:
+    """Run the add-on's timer until the warm-up ends; the times (seconds since ``t0``) of the
+    marks: ``objects`` (with their count), ``smoothed``, ``smoothing`` (the sliders' kernels)."""
     import bpy
 
     marks = {}
@@ -98,6 +96,9 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-cli", action="store_true")
     args = ap.parse_args(argv)
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="anatomesh_bench_"))
+    # a cold cache, before numba is imported: this process and its children
+    os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="anatomesh_cold_blender_")
     blender_first_run()
     if not args.skip_cli:
         cli_warmups()

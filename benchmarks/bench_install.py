@@ -1,22 +1,32 @@
 """Install as a user would, and time the first commands.
 
 For each Python found (``python3.10`` .. ``python3.13`` on the PATH, or ``--pythons``): build the
-wheel once (``pip wheel``), install it into a fresh venv (``pip install anatomesh-*.whl``, its
-dependencies from the index), then time, with empty numba caches:
+wheel once as a release is built (``tools/build_wheel.py``: portable kernels for each of these
+Pythons; ``--plain``: a plain ``pip wheel``, kernels compiled on first use), install it into a
+fresh venv (``pip install anatomesh-*.whl``, its dependencies from the index), then time, with no
+numba cache but the wheel's:
 
 * ``anatomesh --version``;
 * the first ``anatomesh mesh`` of the bundled sample (41-label map, STL): the whole command, and
   the longest time the command printed nothing (stdout and stderr read line by line);
-* the same command again (kernels loaded from the cache numba wrote next to the installed sources).
+* the same command again.
 
-Prints one row per Python; the issue's targets are a first command within 20 s and no silence over
-5 s. Needs the network index pip uses (or its mirror); several minutes per Python on 2 cores::
+Then Blender: the extension zip of this platform (``tools/build_extension.py``, wheels bundled,
+portable kernels unless ``--plain``) installed with Blender's own installer
+(``bpy.ops.extensions.package_install_files``) into a fresh user folder, the background warm-up
+started as enabling it does, the sample imported with extraction: when its objects are there and
+when they are smoothed.
 
-    python benchmarks/bench_install.py [--pythons 3.11,3.13] [--keep DIR]
+Prints one row per Python and a line for Blender; the targets are a first command within 20 s,
+no silence over 5 s, and smoothed surfaces in Blender within 10 s. Needs the network index pip
+uses (or its mirror); several minutes per Python on 2 cores::
+
+    python benchmarks/bench_install.py [--pythons 3.11,3.13] [--plain] [--no-blender] [--keep DIR]
 """
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -26,14 +36,12 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tools"))
+import build_extension  # noqa: E402
+import build_wheel  # noqa: E402
+
+sys.path.pop(0)
 SAMPLE = REPO / "data" / "sample" / "example_seg.nii.gz"
-
-
-def build_wheel(folder: Path) -> Path:
-    """``pip wheel`` of the checkout (no dependencies) into ``folder``."""
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(folder), str(REPO)],
-                   check=True)
-    return next(folder.glob("anatomesh-*.whl"))
 
 
 def fresh_venv(python: str, folder: Path, wheel: Path) -> Path:
@@ -50,7 +58,9 @@ def timed(command, cwd: Path):
     stdout and stderr read line by line as they come."""
     t0 = time.perf_counter()
     stamps, lines = [t0], []
-    process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}  # as a new user's
+    process = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True)
 
     def read():
         for line in process.stdout:
@@ -92,14 +102,63 @@ def one_python(python: str, wheel: Path, work: Path) -> dict:
     return row
 
 
+_BLENDER_FIRST_EXTRACT = """
+import os, sys, time
+os.environ["BLENDER_USER_RESOURCES"] = {user!r}
+import bpy
+t0 = time.perf_counter()
+assert bpy.ops.extensions.package_install_files(filepath={zip!r}, repo="user_default",
+                                                 enable_on_install=True) == {{"FINISHED"}}
+installed = time.perf_counter() - t0
+from bl_ext.user_default.anatomesh.addon.operators import warmup
+from bl_ext.user_default.anatomesh.addon.scene import bridge
+from bl_ext.user_default.anatomesh.app.warmup.compile import counting_compiles
+sys.path.insert(0, {benchmarks!r})
+from bench_first_run import wait_for_warmup
+t1 = time.perf_counter()
+warmup.start(force=True)  # what enabling the extension does in a Blender with a window
+with counting_compiles() as compiled:
+    assert bpy.ops.anatomesh.import_scan(filepath={sample!r}, extract=True) == {{"FINISHED"}}
+    marks = wait_for_warmup(bpy.context.scene, warmup, bridge, t1)
+print("BLENDER", round(installed, 1), marks["objects"][1], round(marks["objects"][0], 1),
+      round(marks["smoothed"], 1), round(time.perf_counter() - t1, 1), len(compiled), flush=True)
+"""
+
+
+def blender_first_extract(work: Path, kernels: bool) -> str:
+    """Build the extension zip (``tools/build_extension.py``: the wheels bundled, portable
+    kernels unless ``kernels`` is False), install it with Blender's own installer into a fresh
+    user folder (the ``bpy`` module, a new process, no numba cache but the zip's), enable it,
+    import the sample with extraction: one line of times."""
+    zips = build_extension.build(work / "extension-dist", kernels=kernels, work=work / "extension")
+    (zip_path,) = [z for z in zips if build_extension._BUILDER_PLATFORM in z.name]
+    script = _BLENDER_FIRST_EXTRACT.format(user=str(work / "blender-user"), zip=str(zip_path),
+                                          benchmarks=str(REPO / "benchmarks"), sample=str(SAMPLE))
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
+    line = next((x for x in out.stdout.splitlines() if x.startswith("BLENDER ")), None)
+    if line is None:
+        return f"Blender: failed ({out.returncode}): {out.stderr[-500:]}"
+    installed, objects, at, smoothed, everything, compiled = line.split()[1:]
+    return (f"Blender ({zip_path.name}, {zip_path.stat().st_size / 2**20:.0f} MiB): installed and enabled in "
+            f"{installed} s; first Extract of the sample: {objects} objects after {at} s, smoothed after "
+            f"{smoothed} s (target 10 s); the background warm-up done after {everything} s; kernels "
+            f"compiled in Blender's own process: {compiled}")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--pythons", default="3.10,3.11,3.12,3.13", help="comma list of versions (python3.X on the PATH)")
+    p.add_argument("--plain", action="store_true", help="a plain wheel, no portable kernels")
     p.add_argument("--keep", help="keep the venvs and outputs in this folder")
+    p.add_argument("--no-blender", dest="blender", action="store_false", help="skip the extension")
     args = p.parse_args(argv)
     work = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="anatomesh_install_"))
     work.mkdir(parents=True, exist_ok=True)
-    wheel = build_wheel(work / "dist")
+    versions = [v.strip() for v in args.pythons.split(",") if shutil.which(f"python{v.strip()}")]
+    t0 = time.perf_counter()
+    wheel = build_wheel.build(work / "dist", None if args.plain else versions, work=work / "build")
+    print(f"wheel built in {time.perf_counter() - t0:.0f} s")
     print(f"wheel: {wheel.name} ({wheel.stat().st_size / 1e6:.1f} MB)")
     print(f"{'python':>6} {'numpy':>8} {'install s':>9} {'version':>22} {'1st mesh s':>10} {'silence s':>9} "
           f"{'2nd mesh s':>10}")
@@ -116,6 +175,8 @@ def main(argv=None) -> int:
               f"{r['first_mesh_s']:>10} {r['first_silence_s']:>9} {r['second_mesh_s']:>10}"
               + (f"  error: {r.get('first_error') or r.get('second_error')}"
                  if "first_error" in r or "second_error" in r else ""), flush=True)
+    if args.blender:
+        print(blender_first_extract(work, kernels=not args.plain), flush=True)
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
     return 0

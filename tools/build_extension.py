@@ -3,8 +3,10 @@
 Usage::
 
     python tools/build_extension.py              # download wheels, build + validate per-platform zips
+                                                 # (this platform's with its kernels compiled inside)
     python tools/build_extension.py --no-wheels  # one zip without wheels (for a Blender whose
                                                  # Python already has numba, pydicom, ...: the tests)
+    python tools/build_extension.py --no-kernels # kernels compiled on first use in Blender instead
     python tools/build_extension.py --validate   # only validate blender_manifest.toml
 
 Output: ``dist/anatomesh-<version>-<platform>.zip`` (or ``dist/anatomesh-<version>.zip`` with
@@ -22,10 +24,12 @@ import argparse
 import glob
 import importlib.util
 import os
+import platform
 import re
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 from typing import List, Optional
 
@@ -35,7 +39,17 @@ except ModuleNotFoundError:  # pragma: no cover - Python < 3.11
     tomllib = None
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tools"))
+import build_wheel  # noqa: E402  (the portable kernels)
+
+sys.path.pop(0)
 MANIFEST = "blender_manifest.toml"
+#: the module name Blender gives an extension installed from a file (the "user_default" repository)
+EXTENSION_MODULE = "bl_ext.user_default.anatomesh"
+#: the platform tag of the zip the kernels compiled here belong in (``--split-platforms`` names)
+_BUILDER_PLATFORM = {("linux", "x86_64"): "linux_x64", ("linux", "aarch64"): "linux_arm64",
+                     ("darwin", "arm64"): "macos_arm64", ("darwin", "x86_64"): "macos_x64",
+                     ("win32", "AMD64"): "windows_x64"}.get((sys.platform, platform.machine()), "?")
 PYTHON_VERSION = "3.11"
 #: top-level entries never copied to the staging folder (developer-only; the manifest's
 #: exclusion patterns would drop most of them anyway, and a virtualenv would be gigabytes)
@@ -125,12 +139,39 @@ def run_ext(blender_ext: Path, *args: str) -> None:
     subprocess.run(cmd, check=True)
 
 
-def build(out_dir: Path, *, wheels: bool = True, blender_ext: Optional[Path] = None,
+def add_portable_kernels(staged: Path) -> str:
+    """numba's kernels compiled for a generic CPU into the staged extension, under the module
+    name Blender gives it (``tools/build_wheel.py`` says how they are found); the manifest keeps
+    them in the zip. Returns the marker line (platform, machine, Python, numba)."""
+    line = build_wheel.compile_portable_kernels(staged, name=EXTENSION_MODULE)
+    build_wheel.write_marker(staged, [line])
+    text = (staged / MANIFEST).read_text()
+    for pattern in ('  "__pycache__/",\n', '  "*.nbi",\n', '  "*.nbc",\n'):
+        assert pattern in text, f"{MANIFEST} no longer excludes {pattern.strip()}"
+        text = text.replace(pattern, "")
+    (staged / MANIFEST).write_text(text)
+    return line
+
+
+def drop_portable_kernels(zip_path: Path) -> None:
+    """Rewrite a zip without the kernels (a platform they were not compiled for)."""
+    kept = zip_path.with_suffix(".tmp")
+    with zipfile.ZipFile(zip_path) as old, zipfile.ZipFile(kept, "w", zipfile.ZIP_DEFLATED) as new:
+        for item in old.infolist():
+            if not item.filename.endswith((".nbi", ".nbc", build_wheel.MARKER)):
+                new.writestr(item, old.read(item))
+    kept.replace(zip_path)
+
+
+def build(out_dir: Path, *, wheels: bool = True, kernels: bool = True, blender_ext: Optional[Path] = None,
           source: Path = REPO, work: Optional[Path] = None) -> List[Path]:
-    """Build (and validate) the extension zips; returns their paths."""
+    """Build (and validate) the extension zips; returns their paths. ``kernels``: with numba's
+    kernels compiled for a generic CPU of this platform (in this platform's zip only)."""
     blender_ext = blender_ext or find_blender_ext()
     work = work or (source / "build")
     staged = stage(source, work / "extension" / "anatomesh")
+    if kernels:
+        print("portable kernels:", add_portable_kernels(staged))
     manifest = (staged / MANIFEST).read_text()
     if wheels:
         cache = work / "wheels"
@@ -155,6 +196,8 @@ def build(out_dir: Path, *, wheels: bool = True, blender_ext: Optional[Path] = N
     if not zips:
         sys.exit(f"error: the builder wrote no zip into {out_dir}")
     for z in zips:
+        if kernels and wheels and _BUILDER_PLATFORM not in z.name:
+            drop_portable_kernels(z)
         run_ext(blender_ext, "validate", str(z))
     return zips
 
@@ -162,6 +205,8 @@ def build(out_dir: Path, *, wheels: bool = True, blender_ext: Optional[Path] = N
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--no-wheels", action="store_true", help="one zip without bundled wheels")
+    ap.add_argument("--no-kernels", action="store_true",
+                    help="without numba's kernels compiled for a generic CPU (they compile on first use)")
     ap.add_argument("--out", default=str(REPO / "dist"), help="output folder (default: dist/)")
     ap.add_argument("--blender-ext", help="path of Blender's blender_ext.py")
     ap.add_argument("--validate", action="store_true", help="only validate the manifest")
@@ -170,7 +215,7 @@ def main(argv=None) -> int:
     if args.validate:
         run_ext(blender_ext, "validate", str(REPO))
         return 0
-    for z in build(Path(args.out), wheels=not args.no_wheels, blender_ext=blender_ext):
+    for z in build(Path(args.out), wheels=not args.no_wheels, kernels=not args.no_kernels, blender_ext=blender_ext):
         print(f"built {z} ({z.stat().st_size / 2**20:.1f} MiB)")
     return 0
 

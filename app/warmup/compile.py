@@ -46,6 +46,8 @@ LANES = max(1, min(2, os.cpu_count() or 1))
 #: what a lane prints after each step: ``lane <steps done> <kernels compiled>``
 _LANE_LINE = "lane"
 
+#: seconds between two progress lines while a run compiles (:func:`announce_compiling`)
+PROGRESS_EVERY = 2.0
 #: a one-line note for runs that compile (the CLI prints it on stderr once)
 FIRST_RUN_NOTE = ("first run: compiling Anatomesh's kernels once (1-2 min; `python -m anatomesh.app.warmup` "
                   "does it ahead), later runs are fast")
@@ -75,16 +77,31 @@ def warm_up(steps: Optional[List[str]] = None,
 
 @contextmanager
 def announce_compiling(stream=None, note: str = FIRST_RUN_NOTE,
-                       say: Optional[Callable[[str], None]] = None):
+                       say: Optional[Callable[[str], None]] = None, every: float = PROGRESS_EVERY):
     """Within the block, say ``note`` once on ``stream`` (default stderr), or by calling
     ``say(note)``, when numba starts compiling an Anatomesh kernel, i.e. when the cache is cold
-    (a cache hit says nothing)."""
+    (a cache hit says nothing); then, while kernels go on compiling, one line at most every
+    ``every`` seconds: how many are compiled, for how long, and which one now."""
     def write(text: str) -> None:
         out = stream or sys.stderr
         out.write(f"\n{text}\n" if getattr(out, "isatty", lambda: False)() else f"{text}\n")
         out.flush()
 
-    with _on_compile(lambda func, types: (say or write)(note), once=True):
+    tell = say or write
+    seen = {"count": 0, "start": 0.0, "said": 0.0}
+
+    def on_compile(func, types) -> None:
+        now = time.perf_counter()
+        if not seen["count"]:
+            tell(note)
+            seen["start"] = seen["said"] = now
+        elif now - seen["said"] >= every:
+            tell(f"  compiling kernels: {seen['count']} done in {now - seen['start']:.0f} s, "
+                 f"now {func.__module__.rsplit('.', 1)[-1]}.{func.__qualname__}")
+            seen["said"] = now
+        seen["count"] += 1
+
+    with _on_compile(on_compile):
         yield
 
 

@@ -173,3 +173,25 @@ def test_after_their_steps_label_maps_extract_and_smooth_compiling_nothing(tmp_p
     out = _run(["-c", code], cache)
     assert out.returncode == 0, out.stderr
     assert "COMPILED 0 []" in out.stdout
+
+
+def test_a_run_that_compiles_says_so_then_tells_its_progress_and_a_cached_run_says_nothing(tmp_path):
+    """The command line's note on a cold cache, then progress lines (how many kernels, how long,
+    which one) while kernels go on compiling; nothing at all once numba's cache holds them."""
+    code = ("import io, numpy as np\n"
+            "from anatomesh.app.warmup.compile import announce_compiling, FIRST_RUN_NOTE\n"
+            "from anatomesh.core.io.values import value_counts\n"
+            "out = io.StringIO()\n"
+            "with announce_compiling(stream=out, every=0.0):\n"
+            "    for dtype in (np.uint8, np.int16, np.int32):\n"
+            "        value_counts(np.arange(27, dtype=dtype).reshape(3, 3, 3) % 4)\n"
+            "lines = out.getvalue().splitlines()\n"
+            "print('FIRST', lines[:1] == [FIRST_RUN_NOTE], 'LINES', len(lines))\n"
+            "print('\\n'.join(lines[1:]))\n")
+    cache = tmp_path / "numba-cache"
+    cold = _run(["-c", code], cache)
+    assert cold.returncode == 0, cold.stderr
+    assert "FIRST True" in cold.stdout and re.search(r"compiling kernels: 1 done in \d+ s, now _values_kernels\.add_counts", cold.stdout)
+    warm = _run(["-c", code], cache)
+    assert warm.returncode == 0, warm.stderr
+    assert "FIRST False LINES 0" in warm.stdout

@@ -77,7 +77,8 @@ def y_roi(r=5.3, h=1.0, z0=20.0, top=50.0, slope=0.4):
             cs += [circle(d, 0, r, z), circle(-d, 0, r, z)]
     fine = np.linspace(0.0, top, 20001)
     area = [2 * math.pi * r * r - _lens(max(0.0, (z - z0) * slope), r) for z in fine]
-    return roi_of(cs), float(np.trapz(area, fine))
+    trapezoid = getattr(np, "trapezoid", None) or np.trapz  # NumPy 2 renamed it
+    return roi_of(cs), float(trapezoid(area, fine))
 
 
 SHAPES = {"sphere": sphere_roi, "torus": torus_roi, "Y": y_roi}

@@ -249,7 +249,7 @@ def test_rescale_dtype_rules(shared_data, tmp_path):
     files = head_slices(shared_data, tmp_path / "big")
     edit(files, lambda ds, _: setattr(ds, "RescaleSlope", 10))  # 3926 * 10 does not fit int16
     big = read_dicom(tmp_path / "big")
-    assert big.data.dtype == np.float32 and big.data.max() == raw.data.max() * 10
+    assert big.data.dtype == np.float32 and big.data.max() == float(raw.data.max()) * 10
     files = head_slices(shared_data, tmp_path / "mixed")
     edit(files, lambda ds, i: setattr(ds, "RescaleIntercept", -1000 if i == 0 else 0))
     mixed = read_dicom(tmp_path / "mixed")
