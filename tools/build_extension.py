@@ -139,11 +139,12 @@ def run_ext(blender_ext: Path, *args: str) -> None:
     subprocess.run(cmd, check=True)
 
 
-def add_portable_kernels(staged: Path) -> str:
-    """numba's kernels compiled for a generic CPU into the staged extension, under the module
-    name Blender gives it (``tools/build_wheel.py`` says how they are found); the manifest keeps
-    them in the zip. Returns the marker line (platform, machine, Python, numba)."""
-    line = build_wheel.compile_portable_kernels(staged, name=EXTENSION_MODULE)
+def add_portable_kernels(staged: Path, steps: Optional[str] = None) -> str:
+    """numba's kernels (the warm-up's default flow, or its ``steps``) compiled for a generic CPU
+    into the staged extension, under the module name Blender gives it (``tools/build_wheel.py``
+    says how they are found); the manifest keeps them in the zip. Returns the marker line
+    (platform, machine, Python, numba)."""
+    line = build_wheel.compile_portable_kernels(staged, name=EXTENSION_MODULE, steps=steps)
     build_wheel.write_marker(staged, [line])
     text = (staged / MANIFEST).read_text()
     for pattern in ('  "__pycache__/",\n', '  "*.nbi",\n', '  "*.nbc",\n'):
@@ -163,15 +164,16 @@ def drop_portable_kernels(zip_path: Path) -> None:
     kept.replace(zip_path)
 
 
-def build(out_dir: Path, *, wheels: bool = True, kernels: bool = True, blender_ext: Optional[Path] = None,
-          source: Path = REPO, work: Optional[Path] = None) -> List[Path]:
+def build(out_dir: Path, *, wheels: bool = True, kernels: bool = True, kernel_steps: Optional[str] = None,
+          blender_ext: Optional[Path] = None, source: Path = REPO, work: Optional[Path] = None) -> List[Path]:
     """Build (and validate) the extension zips; returns their paths. ``kernels``: with numba's
-    kernels compiled for a generic CPU of this platform (in this platform's zip only)."""
+    kernels compiled for a generic CPU of this platform (in this platform's zip only), those of
+    the warm-up's default flow or of its ``kernel_steps``."""
     blender_ext = blender_ext or find_blender_ext()
     work = work or (source / "build")
     staged = stage(source, work / "extension" / "anatomesh")
     if kernels:
-        print("portable kernels:", add_portable_kernels(staged))
+        print("portable kernels:", add_portable_kernels(staged, kernel_steps))
     manifest = (staged / MANIFEST).read_text()
     if wheels:
         cache = work / "wheels"

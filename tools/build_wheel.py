@@ -55,16 +55,18 @@ def stage(work: Path) -> Path:
     return dest
 
 
-def compile_portable_kernels(package: Path, python: str = sys.executable, name: str = "anatomesh") -> str:
-    """Run the warm-up's default flow with ``python`` (an interpreter with Anatomesh's
-    dependencies), the package in ``package`` imported as ``name`` (as it will be installed:
-    ``bl_ext.user_default.anatomesh`` in Blender) and numba targeting a generic CPU; numba writes
-    the caches beside the sources. Returns the marker line of this build:
-    ``<platform> <machine> <python cache tag> numba <version>``."""
+def compile_portable_kernels(package: Path, python: str = sys.executable, name: str = "anatomesh",
+                             steps: Optional[str] = None) -> str:
+    """Run the warm-up's default flow (or its ``steps``, comma-separated) with ``python`` (an
+    interpreter with Anatomesh's dependencies), the package in ``package`` imported as ``name``
+    (as it will be installed: ``bl_ext.user_default.anatomesh`` in Blender) and numba targeting
+    a generic CPU; numba writes the caches beside the sources. Returns the marker line of this
+    build: ``<platform> <machine> <python cache tag> numba <version>``."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     env.update(NUMBA_CPU_NAME="generic", PYTHONPATH=str(package.parent), PYTHONDONTWRITEBYTECODE="1")
+    which = ["--steps", steps] if steps else ["--default-only"]
     as_name = [] if name == "anatomesh" else ["--as", name, str(package.parent)]
-    subprocess.run([python, "-m", "anatomesh.app.warmup", "--quiet", "--default-only", *as_name],
+    subprocess.run([python, "-m", "anatomesh.app.warmup", "--quiet", *which, *as_name],
                    cwd=package.parent, env=env, check=True)
     facts = ("import platform, sys; from importlib.metadata import version; "
              "print(sys.platform, platform.machine(), sys.implementation.cache_tag, 'numba', version('numba'))")

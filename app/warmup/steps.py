@@ -71,13 +71,15 @@ def _reading(folder: Path) -> None:
 
 
 def _label_surfaces(folder: Path) -> None:
-    """A uint8 label map's surfaces extracted and split into shells (no file: the lanes start
-    compiling without importing and running a reader first), in Fortran order too (as NIfTI
-    readers give the voxels: the lattice's columns put back in place)."""
+    """A uint8 label map's surfaces extracted and split into shells with their pinch points moved
+    apart, as every file and the add-on's objects show them (no file: the lanes start compiling
+    without importing and running a reader first), in Fortran order too (as NIfTI readers give
+    the voxels: the lattice's columns put back in place)."""
     from ...core.extract.multilabel import label_surfaces
+    from ..flow.stages import output_shells
 
     labels = _label_map(np.uint8)
-    label_surfaces(labels, affine=np.diag([1.0, 1.0, 2.5, 1.0])).shells()
+    output_shells(label_surfaces(labels, affine=np.diag([1.0, 1.0, 2.5, 1.0])))
     label_surfaces(np.asfortranarray(labels))
 
 
@@ -141,8 +143,9 @@ def _more_types(folder: Path) -> None:
 
 def _label_smoothing(folder: Path) -> None:
     """What the add-on's first smoothing of a label map's surfaces runs (a smoothing session's
-    first run with the default settings, thick and isotropic slices): extracted organs are
-    smoothed this early, the rest of :func:`_smoothing` compiles after."""
+    first run with the default settings, thick and isotropic slices, then the pinch points moved
+    apart): extracted organs are smoothed this early, the rest of :func:`_smoothing` compiles
+    after."""
     from ...core.extract.multilabel import label_surfaces
     from ...core.smooth.session import SmoothingSession
     from ..flow import stages
@@ -153,6 +156,7 @@ def _label_smoothing(folder: Path) -> None:
         s = label_surfaces(_label_map(np.uint8), affine=np.diag(list(spacing) + [1.0]))
         session = SmoothingSession(s)
         out = session.run(method, **settings)[0]
+    stages.output_shells(s.copy_with_vertices(out))  # the smoothed objects' pinch points moved apart
     for dtype in (np.float32, np.float64):  # the component guard on the kept and the working positions
         session.components().volumes(out.astype(dtype))
     _rounds_after_untangling(session, out)  # organs that touch, e.g. the sample's

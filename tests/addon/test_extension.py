@@ -50,11 +50,13 @@ def test_manifest_validates():
 
 def test_no_wheels_zip_installs_and_its_kernels_load(tmp_path):
     """Build with tools/build_extension.py --no-wheels (numba's kernels compiled for a generic CPU
-    inside); install it with Blender's own installer in a fresh Blender (subprocess, no numba
-    cache of ours): the first extraction of the sample loads every kernel, compiling none."""
+    inside: the steps a label map's extraction and first smoothing wait for); install it with
+    Blender's own installer in a fresh Blender (subprocess, no numba cache of ours): the first
+    extraction of the sample loads every kernel, compiling none."""
     seg = str(shared("totalsegmentator", "example_seg.nii.gz"))
     table = str(shared("totalsegmentator", "label_names_total_and_total_mr.json"))
-    (zip_path,) = build_extension.build(tmp_path / "dist", wheels=False, work=tmp_path / "work")
+    steps = "reading,label surfaces,large label maps,label smoothing"
+    (zip_path,) = build_extension.build(tmp_path / "dist", wheels=False, kernel_steps=steps, work=tmp_path / "work")
     names = zipfile.ZipFile(zip_path).namelist()
     assert "blender_manifest.toml" in names and "addon/operators/scan.py" in names and "core/model/mesh.py" in names and "app/flow/run.py" in names
     assert not any(n.startswith(("tests/", "benchmarks/", "tools/", "data/", "examples/", ".")) for n in names)

@@ -146,9 +146,9 @@ def test_two_lanes_share_a_cold_first_run_and_the_first_extraction_compiles_noth
 def test_after_their_steps_label_maps_extract_and_smooth_compiling_nothing(tmp_path):
     """The parallel passes of maps above PARALLEL_MIN_VOXELS have a step of their own (Blender
     used to compile them, frozen, on the first large map after a complete warm-up); the label
-    steps leave nothing to compile for the sample's extraction, small or large, and "label
-    smoothing" nothing for the first smoothing of its surfaces (what Blender runs after
-    extracting them)."""
+    steps leave nothing to compile for the sample's extraction, small or large, with its pinch
+    points moved apart, and "label smoothing" nothing for the first smoothing of its surfaces
+    (what Blender runs after extracting them)."""
     cache = tmp_path / "numba-cache"
     steps = "reading,label surfaces,large label maps,label smoothing"
     warm = _run(["-m", "anatomesh.app.warmup", "--steps", steps, "--lanes", "1"], cache)
@@ -158,14 +158,16 @@ def test_after_their_steps_label_maps_extract_and_smooth_compiling_nothing(tmp_p
             "from anatomesh.core.io import load\n"
             "from anatomesh.core.extract import multilabel\n"
             "from anatomesh.core.smooth.session import SmoothingSession\n"
-            "from anatomesh.app.flow.stages import smoothing\n"
+            "from anatomesh.app.flow.stages import output_shells, smoothing\n"
             "from anatomesh.app.flow.recipe import Recipe\n"
             f"vol = load({str(SAMPLE / 'example_seg.nii.gz')!r})\n"
             "with counting_compiles() as names:\n"
             "    surfaces = multilabel.label_surfaces(vol)\n"
             "    small = surfaces.shells()\n"
+            "    output_shells(surfaces)\n"
             "    method, settings = smoothing(Recipe())\n"
             "    moved = SmoothingSession(surfaces).run(method, **settings)[0] - surfaces.vertices\n"
+            "    output_shells(surfaces.copy_with_vertices(surfaces.vertices + moved))\n"
             "    multilabel.PARALLEL_MIN_VOXELS = 0\n"
             "    large = multilabel.label_surfaces(vol).shells()\n"
             "assert len(small) == len(large) == 41 and abs(moved).max() > 0.05\n"
