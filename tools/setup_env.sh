@@ -68,8 +68,12 @@ if [ "$have" != "$want tests" ] && [ "$have" != "$want $MODE" ]; then
     echo "installing Anatomesh with its test extras (pytest, bpy, pymeshlab, dask, playwright, trimesh) into $VENV"
     extras="test"
   fi
-  "$VENV/bin/python" -m pip install --quiet --upgrade pip
-  "$VENV/bin/python" -m pip install --quiet -e ".[$extras]"
+  # pip's and the build backend's notes go to a log, shown only when the install fails
+  mkdir -p build
+  log="build/pip-install-$(basename "$VENV").log"
+  { "$VENV/bin/python" -m pip install --quiet --upgrade pip \
+      && "$VENV/bin/python" -m pip install --quiet -e ".[$extras]"; } > "$log" 2>&1 \
+    || { cat "$log" >&2; echo "error: pip install failed (log: $log)" >&2; exit 1; }
   echo "$want $MODE" > "$stamp"
 fi
 # our own modules' bytecode, written once: with PYTHONDONTWRITEBYTECODE set (as on CI machines)
