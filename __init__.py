@@ -22,9 +22,10 @@ def _use_portable_kernels() -> bool:
     from importlib import metadata
 
     try:
-        here = f"{_sys.platform} {platform.machine()} {_sys.implementation.cache_tag} numba {metadata.version('numba')}"
+        numba_version = metadata.version("numba")
     except metadata.PackageNotFoundError:
         return False
+    here = f"{_sys.platform} {platform.machine()} {_sys.implementation.cache_tag} numba {numba_version}"
     with open(marker, encoding="utf-8") as fh:
         if here not in fh.read().splitlines():
             return False

@@ -11,8 +11,8 @@ Who runs it:
 
 * the command line: ``python -m anatomesh.app.warmup`` compiles everything ahead of time
   (``tools/setup_env.sh`` runs it); and
-  every ``anatomesh`` command announces, in one line on stderr, when a run compiles
-  (:func:`announce_compiling`);
+  every ``anatomesh`` command announces, in one line on stderr, when a run compiles, then
+  tells its progress while it goes on compiling (:func:`announce_compiling`);
 * the Blender add-on: after the extension is enabled, a background process of Blender's own
   Python runs this module under the add-on's own package name (numba's cache remembers the module
   name a kernel was compiled under), while the UI shows its progress (``addon/warmup.py``).
@@ -239,7 +239,7 @@ def _package() -> str:
 
 
 @contextmanager
-def _on_compile(callback: Callable, once: bool = False):
+def _on_compile(callback: Callable):
     """Call ``callback(python_function, argument_types)`` when numba starts compiling one of our
     kernels."""
     from numba.core import event
@@ -247,15 +247,10 @@ def _on_compile(callback: Callable, once: bool = False):
     package = _package()
 
     class _Listener(event.Listener):
-        calls = 0
-
         def on_start(self, ev):
             func = getattr(ev.data.get("dispatcher"), "py_func", None)
-            if func is None or not getattr(func, "__module__", "").startswith(package + "."):
-                return
-            if not (once and self.calls):
+            if func is not None and getattr(func, "__module__", "").startswith(package + "."):
                 callback(func, ev.data.get("args", ()))
-            self.calls += 1
 
         def on_end(self, ev):
             pass
