@@ -18,7 +18,7 @@ runs. This script:
 
 Where numba, Python or the platform differ from a build's, the package leaves numba alone and it
 compiles on first use as without them. Generic-CPU kernels run the whole ``anatomesh mesh``
-command as fast as kernels compiled for the host (``benchmarks/bench_install.py``), so nothing
+command as fast as kernels compiled for the host (``benchmarks/bench_generic_cpu.py``), so nothing
 is compiled again for the host. ::
 
     python tools/build_wheel.py [--out dist] [--pythons 3.10,3.11,3.12,3.13] [--no-kernels]
