@@ -4,8 +4,9 @@
 Blender): :func:`write_blend` starts an empty file, adds the surfaces through the very function
 the Extract button uses (:func:`anatomesh.addon.operators.scan_ops.scan_to_scene`: one collection named
 after the scan, one object per label or level named after it, its material and colour, the custom
-properties, the live-smoothing cache), frames a camera from the patient's front, lights the scene
-and saves it; with ``render_png`` it also renders the view with Cycles on the CPU.
+properties, the live-smoothing cache), frames one camera per asked view (labels optional) and a
+turntable, lights the scene and saves it; it renders the views with Cycles on the CPU (and the
+turntable's frames and video).
 
 The surfaces go in as the pipeline made them (smoothed, decimated): they are the objects' rest
 shape, with the Smooth panel at 0 iterations, so nothing is smoothed twice.
@@ -16,19 +17,14 @@ the current file's contents, so it refuses to run in an interactive Blender sess
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
-from typing import Optional, Sequence, Tuple
+from typing import Dict, Sequence, Tuple
 
 import bpy
 
 from .operators import smooth as live, scan
-from .scene import objects as scene
-
-#: organs made see-through in the picture (name contains one of these), with their opacity
-SEE_THROUGH = ("lung",)
-SEE_THROUGH_ALPHA = 0.25
-
+from .scene import lights, objects as scene, pictures
+from .scene import turntable as turning
 
 def ensure_registered() -> None:
     """Register the add-on (this package) unless an Anatomesh add-on is registered already."""
@@ -41,22 +37,27 @@ def ensure_registered() -> None:
 
 
 def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple[int, int] = (960, 540),
-                elevation: float = 30.0, azimuth: float = -25.0,
-                see_through: Sequence[str] = SEE_THROUGH) -> Optional[Path]:
-    """Build the scene of a :class:`~anatomesh.app.flow.result.Result` and save it as ``path``.
+                labels_on: Sequence[str] = (), turntable: int = 0, turntable_dir=None, video=None,
+                light: str = "studio") -> Dict:
+    """Build the scene of a :class:`~anatomesh.app.flow.result.Result`, save it as ``path`` and
+    render its pictures.
 
     Parameters
     ----------
     result : pipeline Result (``volume``, ``surfaces``, ``surface_set``, ``recipe``)
     path : str or Path, optional
         The .blend to write (None: build and render only).
-    render_png : str or Path, optional
-        Also render the camera view with Cycles on the CPU into this PNG.
+    render_png : dict view → PNG path, or one PNG path (the anterior view), optional
+        One framed camera per view (:mod:`.scene.camera`), each rendered with Cycles on the CPU.
     samples, size : Cycles samples and the image size in pixels (width, height).
-    elevation, azimuth : camera degrees above the front view and around the body's long axis.
-    see_through : organs (by name) drawn see-through (:data:`SEE_THROUGH_ALPHA`, oriented).
+    labels_on : structures (names) labelled in every view (:mod:`.scene.labels`).
+    turntable, turntable_dir, video : N frames of a turn about the long axis rendered into the
+        folder ``turntable_dir`` and, where Blender has FFmpeg, the MP4 ``video``.
+    light : the light preset (:data:`.scene.lights.PRESETS`: ``studio``, ``atlas``).
 
-    Returns the .blend path (or None). Errors in Blender become :class:`AnatomeshError`.
+    The .blend holds every view's camera (the first one active, its labels shown) and the
+    turntable's, with the render settings, so it renders the first PNG again. Returns what was
+    rendered (:func:`.scene.pictures.shoot`). Errors in Blender become :class:`AnatomeshError`.
     """
     from ..core.model.errors import AnatomeshError
 
@@ -66,25 +67,25 @@ def write_blend(result, path, *, render_png=None, samples: int = 32, size: Tuple
     ensure_registered()
     bpy.ops.wm.read_homefile(use_empty=True)
     sc = bpy.context.scene
-    sc.render.resolution_x, sc.render.resolution_y = int(size[0]), int(size[1])
+    pictures.configure(sc, samples, size)
     coll = result_to_scene(bpy.context, result)
-    scene.frame_camera(sc, scene.surface_objects(coll), coll.anatomesh.space, "ANTERIOR",
-                       elevation, azimuth)
-    setup_look(sc, coll, see_through)
-    out = None
+    stills = render_png if isinstance(render_png, dict) else (
+        {"anterior": render_png} if render_png is not None else {})
+    for view in reversed(list(stills) or ["anterior"]):  # the first view ends up the scene's camera
+        pictures.add_view(sc, coll, view, labels_on)
+    setup_look(sc, coll, light)
+    if turntable:
+        turning.add_turntable(sc, scene.surface_objects(coll), coll.anatomesh.space, turntable)
     try:
         if path is not None:
             out = Path(path).resolve()
             out.parent.mkdir(parents=True, exist_ok=True)
             bpy.context.preferences.filepaths.save_version = 0  # no .blend1 beside it
             bpy.ops.wm.save_as_mainfile(filepath=str(out), check_existing=False)
-        if render_png is not None:
-            png = Path(render_png).resolve()
-            png.parent.mkdir(parents=True, exist_ok=True)
-            render(sc, str(png), samples, size)
+        return pictures.shoot(sc, coll, stills, Path(turntable_dir) if turntable and turntable_dir else None,
+                              video)
     except RuntimeError as exc:  # bpy.ops errors (disk full, no permission, ...)
         raise AnatomeshError(f"Blender could not write it ({exc})", path or render_png) from None
-    return out
 
 
 def result_to_scene(context, result) -> bpy.types.Collection:
@@ -106,59 +107,19 @@ def result_to_scene(context, result) -> bpy.types.Collection:
     return coll
 
 
-def setup_look(sc: bpy.types.Scene, collection: bpy.types.Collection,
-               see_through: Sequence[str] = SEE_THROUGH, alpha: float = SEE_THROUGH_ALPHA) -> None:
-    """See-through outer organs (oriented transparency), a neutral background, soft sun lights.
+def setup_look(sc: bpy.types.Scene, collection: bpy.types.Collection, light: str = "studio") -> None:
+    """Light the scan with a preset of :mod:`.scene.lights` (``studio``: key, fill and rim area
+    lights; ``atlas``: bright, even light on a light backdrop), placed relative to the scene
+    camera (frame it first).
 
-    The lights are placed relative to the scene camera (:func:`scene.frame_camera` first): a key
-    from above-left and a weak fill from the right.
+    The materials come with the objects (:func:`scan.scan_to_scene`: each structure's tissue
+    class, its opacity from the style table, its cut faces marked), as the Extract button makes
+    them.
     """
-    objs = scene.surface_objects(collection)
-    for obj in objs:
-        name = str(obj.get("anatomesh_name", obj.name)).lower()
-        if any(word in name for word in see_through):
-            obj["anatomesh_alpha"] = float(alpha)
-            obj["anatomesh_oriented"] = 1.0
-    world = sc.world or bpy.data.worlds.new("World")
-    sc.world = world
-    if bpy.app.version < (5, 0, 0):
-        world.use_nodes = True
-    bg = world.node_tree.nodes.get("Background")
-    if bg is not None:
-        bg.inputs["Color"].default_value = (0.09, 0.1, 0.12, 1.0)
-        bg.inputs["Strength"].default_value = 0.5
-    from mathutils import Matrix, Vector
-
-    box = scene.bounds(objs)
-    centre = Vector(tuple(box.mean(0))) if box is not None else Vector((0.0, 0.0, 0.0))
-    cam = sc.camera
-    to_cam = (cam.location - centre).normalized() if cam is not None else Vector((0.0, 1.0, 0.0))
-    for name, energy, turn, raise_ in (("Key", 3.0, -35.0, 45.0), ("Fill", 1.0, 60.0, 5.0)):
-        light = bpy.data.lights.new(f"Anatomesh {name}", "SUN")
-        light.energy = energy
-        light.angle = 0.15
-        obj = bpy.data.objects.new(light.name, light)
-        sc.collection.objects.link(obj)
-        d = Matrix.Rotation(math.radians(turn), 3, "Z") @ to_cam
-        horizontal = Vector((d.x, d.y, 0.0)).normalized()
-        d = horizontal * math.cos(math.radians(raise_)) + Vector((0, 0, math.sin(math.radians(raise_))))
-        obj.rotation_euler = (-d).to_track_quat("-Z", "Y").to_euler()
+    lights.apply_lights(sc, scene.surface_objects(collection), light)
 
 
 def render(sc: bpy.types.Scene, path: str, samples: int = 32, size: Tuple[int, int] = (960, 540)) -> None:
     """Render the scene camera's view with Cycles on the CPU (denoised) into a PNG at ``path``."""
-    sc.render.engine = "CYCLES"
-    sc.cycles.device = "CPU"
-    sc.cycles.samples = int(samples)
-    sc.cycles.use_adaptive_sampling = True
-    sc.cycles.transparent_max_bounces = 16
-    try:
-        sc.cycles.use_denoising = True
-        sc.cycles.denoiser = "OPENIMAGEDENOISE"
-    except (AttributeError, TypeError):
-        pass
-    sc.render.resolution_x, sc.render.resolution_y = int(size[0]), int(size[1])
-    sc.render.resolution_percentage = 100
-    sc.render.image_settings.file_format = "PNG"
-    sc.render.filepath = path
-    bpy.ops.render.render(write_still=True)
+    pictures.configure(sc, samples, size)
+    pictures.render_still(sc, path)

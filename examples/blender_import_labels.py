@@ -12,8 +12,9 @@ What it does, with the add-on's own operators (the same ones the sidebar buttons
    extracts it, smoothed with the command line's default (``organ``: Taubin, every vertex kept
    inside its voxel cell, volumes restored, nothing crossing);
 3. ``anatomesh.smooth``: the same driver with other settings when ``--iterations`` is given;
-4. makes the lungs see-through (opacity + oriented transparency), frames a camera from the
-   patient's front, lights the scene, saves a .blend and renders a PNG with Cycles on the CPU.
+4. frames a camera from the patient's front, lights the scene (the ``studio`` preset), saves a
+   .blend and renders a PNG with Cycles on the CPU; each structure is drawn as its tissue class
+   of the style table, the lungs see-through (opacity + oriented transparency), cut faces marked.
 
 Options (defaults in brackets)::
 

@@ -41,6 +41,7 @@ def test_data_folders_ship_their_files():
     data = cfg["package-data"]
     assert data["anatomesh.app.web.viewer"] == ["*"] and (REPO / "app" / "web" / "viewer" / "viewer.js").is_file()
     assert data["anatomesh.data.sample"] == ["*"]
+    assert data["anatomesh.core.model.styles"] == ["*.toml"] and (REPO / "core" / "model" / "styles" / "default.toml").is_file()
 
 
 def _probe_package(tmp_path: Path, marker_line: str) -> Path:

@@ -1,4 +1,5 @@
-// Build the page's viewer: bundle src/main.js with three.js and meshoptimizer's decoder (the
+// Build the page's viewer: bundle src/main.js with three.js (and the fflate inflater it ships)
+// and meshoptimizer's decoder (the
 // versions pinned in package-lock.json) into one minified classic script (classic, not a module:
 // pages opened from file:// may not load modules), with the libraries' licences beside it.
 //
@@ -30,6 +31,9 @@ await build({
   logLevel: 'warning',
 });
 
+/** The header fflate's file carries (name, licence, version). */
+const fflateHeader = () => readFileSync(join(here, 'node_modules', 'three', 'examples', 'jsm', 'libs', 'fflate.module.js'), 'utf8')
+  .match(/\/\*!([\s\S]*?)\*\//)[1].trim();
 const licence = (lib, file) => readFileSync(join(here, 'node_modules', lib, file), 'utf8').trim();
 writeFileSync(join(out, 'LICENSES.txt'), [
   'viewer.js bundles the following libraries, installed from npm (web/package-lock.json).',
@@ -37,6 +41,8 @@ writeFileSync(join(out, 'LICENSES.txt'), [
   `== three.js ${version('three')} (https://threejs.org) ==`, licence('three', 'LICENSE'), '',
   `== meshoptimizer ${version('meshoptimizer')} decoder (https://github.com/zeux/meshoptimizer) ==`,
   licence('meshoptimizer', 'LICENSE.md'), '',
+  '== fflate (https://github.com/101arrowz/fflate), as three.js bundles it (examples/jsm/libs/fflate.module.js) ==',
+  fflateHeader(), '', licence('three', 'LICENSE').replace(/^Copyright.*$/m, 'Copyright (c) Arjun Barrett'), '',
   '== Anatomesh viewer code (web/src) ==',
   'GPL-3.0-or-later, as Anatomesh.', '',
 ].join('\n'));

@@ -10,8 +10,9 @@ parameters, e.g.::
 Errors caused by the input (a bad file, a missing label) are reported as ``ERROR`` and the
 operator returns ``{'CANCELLED'}``; no exception escapes into Blender.
 """
-from . import (decimate_ops, edit_tools_ops, export_ops, fit_ops, paint_ops, preprocess_ops,
-               print_check_ops, print_parts_ops, recipe_ops, scan_ops, smooth_ops, view_ops, web_ops)
+from . import (decimate_ops, edit_tools_ops, export_ops, fit_ops, look_ops, paint_ops,
+               preprocess_ops, print_check_ops, print_parts_ops, recipe_ops, scan_ops, smooth_ops,
+               view_ops, web_ops)
 
 CLASSES = (scan_ops.ANATOMESH_OT_import_scan, scan_ops.ANATOMESH_OT_extract,
            scan_ops.ANATOMESH_OT_labels_select, scan_ops.ANATOMESH_OT_level_add,
@@ -20,6 +21,7 @@ CLASSES = (scan_ops.ANATOMESH_OT_import_scan, scan_ops.ANATOMESH_OT_extract,
            decimate_ops.ANATOMESH_OT_decimate_apply, print_check_ops.ANATOMESH_OT_print_check,
            print_check_ops.ANATOMESH_OT_print_select_problem, export_ops.ANATOMESH_OT_export,
            recipe_ops.ANATOMESH_OT_recipe_save, recipe_ops.ANATOMESH_OT_recipe_load,
-           view_ops.ANATOMESH_OT_frame_camera, web_ops.ANATOMESH_OT_export_web,
+           web_ops.ANATOMESH_OT_export_web,
            web_ops.ANATOMESH_OT_paint_margins, fit_ops.ANATOMESH_OT_print_fit)
-CLASSES += preprocess_ops.CLASSES + print_parts_ops.CLASSES + edit_tools_ops.CLASSES
+CLASSES += preprocess_ops.CLASSES + print_parts_ops.CLASSES + edit_tools_ops.CLASSES + look_ops.CLASSES
+CLASSES += view_ops.CLASSES

@@ -112,10 +112,10 @@ def decimated(objs, recipe, progress=None, sets: Optional[List] = None):
 
 
 def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
-    """New geometry for a surface object (materials and name stay): it becomes the rest shape
-    (``rest``, default ``vertices``: the set's positions before the pinch points are moved
-    apart); ``vertex_ids`` (N,) its shared-set indices, None when it has none any more. The
-    edges come from the core (:func:`anatomesh.addon.operators.isovalue.set_triangles`)."""
+    """New geometry for a surface object (materials and name stay, its cut faces marked again): it
+    becomes the rest shape (``rest``, default ``vertices``: the set's positions before the pinch
+    points are moved apart); ``vertex_ids`` (N,) its shared-set indices, None when it has none
+    any more. The edges come from the core (:func:`anatomesh.addon.operators.isovalue.set_triangles`)."""
     from .isovalue import set_triangles
 
     me = obj.data
@@ -125,6 +125,7 @@ def write_surface(obj, vertices, faces, vertex_ids=None, rest=None) -> None:
         me.attributes.remove(me.attributes[live.LATTICE_ATTRIBUTE])
     if vertex_ids is not None:
         bridge.set_point_attribute(me, bridge.SHARED_INDEX_ATTRIBUTE, vertex_ids, "int")
+    scene.mark_cut_faces(obj)  # the new faces on the scan's field-of-view boundary
 
 
 def preview_ratios(collection, objs, target, ratio, faces, max_error) -> Dict[str, float]:

@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 
 from . import smooth as live
+from ..scene import materials, render_gap
 from ..scene import objects as scene
 from .common import parse_list
 from . import iso_presets as presets
@@ -123,7 +124,16 @@ def extraction_recipe(settings, volume, labels_text: str = "", levels_text: str 
             raise AnatomeshError("no isovalue chosen; tick or add a level", volume.meta.get("source"))
         recipe.levels = [float(v) for v, _, _ in chosen]
         recipe.level_names = [str(name) for _, name, _ in chosen]
-    return recipe, {_key(v): (name, tuple(color)) for v, name, color in chosen}
+    return recipe, {_key(v): (name, _edited_colour(volume, v, color)) for v, name, color in chosen}
+
+
+def _edited_colour(volume, value, colour):
+    """A row's colour when the user changed it, else None: the extraction's styled colour (style
+    table, touching structures kept apart) applies, as on the command line."""
+    info = (volume.labels or {}).get(value) if volume.is_label_map else None
+    if info is not None and np.allclose(tuple(colour)[:3], tuple(info.color)[:3], atol=1e-3):
+        return None
+    return tuple(colour)
 
 
 def object_props(volume, value, name) -> dict:
@@ -134,6 +144,7 @@ def object_props(volume, value, name) -> dict:
         "anatomesh_series_uid": str(volume.meta.get("series_uid", "") or ""),
         "anatomesh_space": volume.space,
         "anatomesh_affine": [float(x) for x in np.asarray(volume.affine).ravel()],
+        "anatomesh_shape": [int(n) for n in volume.shape],
         "anatomesh_units": "mm",
     }
 
@@ -164,8 +175,8 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
                      render_method: str = "DITHERED", progress=None) -> bpy.types.Collection:
     """Extract the surfaces ``recipe`` asks for (labels or levels) with the command line's stage
     functions (:func:`anatomesh.app.flow.stages.layers_of`, :func:`~anatomesh.app.flow.stages.extract`) and
-    add them as objects in a new collection; ``looks`` {value: (name, colour)} overrides the
-    names and colours (the Labels panel's rows). Not smoothed yet (:func:`live.smooth_collection`)."""
+    add them as objects in a new collection; ``looks`` {value: (name, colour or None)} overrides the
+    names and colours (the Labels panel's rows; None: the extraction's styled colour). Not smoothed yet (:func:`live.smooth_collection`)."""
     from ...app.flow import stages
     from ...app.warmup.compile import announce_compiling
 
@@ -192,7 +203,8 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
 def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: Sequence[str] = (),
                   render_method: str = "DITHERED", looks: Optional[Dict] = None) -> bpy.types.Collection:
     """Add extracted surfaces to the scene: a new collection named after the scan, one object
-    per item, and the live-smoothing cache.
+    per item (its tissue class's material, its cut faces marked, a render-only gap at shared
+    interfaces: :mod:`..scene.render_gap`), and the live-smoothing cache.
 
     ``items``: ``(shell Mesh, layer index)`` with ``meta["vertex_ids"]`` into ``layers[k]`` (the
     unsmoothed SurfaceSets the live smoothing starts from). Used by :func:`extract_to_scene` and
@@ -207,14 +219,19 @@ def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: 
     coll = _scan_collection(context, volume, warnings, render_method)
     members = []
     for m, k in items:
-        name, color = (looks or {}).get(_key(m.value), (m.name, tuple(m.color)[:3]))
+        name, color = (looks or {}).get(_key(m.value), (m.name, None))
+        color = tuple(m.color)[:3] if color is None else color
         ids = shared_index(m)
         props = object_props(volume, m.value, name)
-        if len(tuple(m.color)) > 3:  # fuzzy shells carry their opacity in an RGBA colour
+        if len(tuple(m.color)) > 3:  # the style's opacity (fuzzy shells: their level's) in RGBA
             props["anatomesh_alpha"] = float(m.color[3])
+            props["anatomesh_oriented"] = 1.0 if m.color[3] < 1.0 else 0.0
         obj = scene.add_surface(coll, name, m.vertices, m.faces, props,
                                 color, render_method, shared_index=ids, vertex_colors=m.vertex_colors,
-                                rest=layers[k].vertices[ids])
+                                rest=layers[k].vertices[ids],
+                                tissue=materials.tissue_for(name, m.meta.get("material")))
+        scene.mark_cut_faces(obj)
+        render_gap.add_render_gap([obj], render_gap.gap_mm(volume.spacing))
         obj[live.LAYER_PROPERTY] = k + 1
         live.store([(obj, ids)], k, layers[k])
         members.append((obj.name, k, ids, shell_label(layers[k], m)))

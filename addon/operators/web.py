@@ -59,9 +59,11 @@ def paint_margins(context, objects: Sequence, target, margins: Sequence[float]) 
 
 
 def export_web(context, objects: Sequence, folder: str, *, title: str, levels: int = 2,
-               overwrite: bool = False) -> Dict:
-    """The page of ``objects`` in ``folder`` (``index.html`` + scripts); returns its summary
-    (sizes and triangles per level, :func:`anatomesh.app.web.page.write_page`)."""
+               overwrite: bool = False, views: Sequence[Dict[str, str]] = ()) -> Dict:
+    """The page of ``objects`` in ``folder`` (``index.html`` + scripts), listing ``views``
+    (:func:`anatomesh.app.web.views.read_views`); returns its summary (sizes and triangles per
+    level, :func:`anatomesh.app.web.page.write_page`). A structure's opacity on the page is its
+    colour's alpha."""
     from ...app.web.page import WebModel, write_page
     from ...app.web.models import mesh_levels
 
@@ -69,13 +71,14 @@ def export_web(context, objects: Sequence, folder: str, *, title: str, levels: i
     meshes = object_meshes(context, objects)
     for m, o in zip(meshes, objects):
         m.vertex_colors = _matching(object_colors(context, o), m.n_vertices)
+        m.color = (*m.color[:3], float(o.get("anatomesh_alpha", 1.0)))  # the page's default opacity
     levels_of = mesh_levels(meshes, levels)
     full = levels_of[-1]
     if any(m.vertex_colors is not None for m in full):  # coarse levels: the nearest full vertex's colour
         for level in levels_of[:-1]:
             for coarse, fine in zip(level, full):
                 coarse.vertex_colors = _nearest_colors(coarse, fine)
-    return write_page([WebModel(title, levels_of)], folder, title=title, overwrite=overwrite)
+    return write_page([WebModel(title, levels_of)], folder, title=title, overwrite=overwrite, views=views)
 
 
 def _matching(colors: Optional[np.ndarray], n: int) -> Optional[np.ndarray]:

@@ -6,6 +6,7 @@ import os
 import bpy
 from bpy.props import BoolProperty, EnumProperty, IntProperty, StringProperty
 
+from ...app.web.views import read_views
 from ...core.export.common import file_stem
 from ...core.model.errors import AnatomeshError
 from . import warmup
@@ -29,6 +30,9 @@ class ANATOMESH_OT_export_web(bpy.types.Operator):
     levels: IntProperty(name="Levels of Detail", default=2, min=1, max=4,
                         description="The coarsest is shown first, finer ones replace it as they load")
     overwrite: BoolProperty(name="Overwrite", default=False, description="Replace an existing page")
+    views: StringProperty(name="Views", subtype="FILE_PATH",
+                          description="Saved views the page lists: a TOML or JSON file of name = URL fragment "
+                                      "(default: the Settings panel's web views)")
 
     @guarded
     def execute(self, context):
@@ -38,11 +42,14 @@ class ANATOMESH_OT_export_web(bpy.types.Operator):
         objs = surface_objects_of(context, self.selection, self.collection)
         if not objs:
             raise AnatomeshError("nothing to export: select surface objects or choose a scan collection")
+        views_file = abspath(self.views or getattr(getattr(context.scene, "anatomesh_recipe", None), "web_views", ""))
+        views = read_views(views_file) if views_file else []  # a bad file: one line, nothing written
         if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
             return {"FINISHED"}
         title = objs[0].users_collection[0].name if objs[0].users_collection else "surfaces"
         out = os.path.join(folder, file_stem(title) + "_web")
-        summary = export_web(context, objs, out, title=title, levels=self.levels, overwrite=self.overwrite)
+        summary = export_web(context, objs, out, title=title, levels=self.levels, overwrite=self.overwrite,
+                             views=views)
         self.report({"INFO"}, f"Wrote {summary['page']} ({summary['total_bytes'] / 1e6:.2f} MB, "
                               f"{summary['levels'][-1]['triangles']:,} triangles)")
         return {"FINISHED"}

@@ -6,13 +6,16 @@
   ``name.001``; nothing the user already has is renamed, replaced or deleted).
 * Each label or isosurface is one object named after it, carrying custom properties that say
   where it came from (:data:`OBJECT_PROPS`).
-* Each object gets its own material: Principled BSDF in the label's colour; opacity is read from
+* Each object gets its own material: the node group of its tissue class (:mod:`.materials`: one
+  shared group per class, ``anatomesh_tissue``) with the label's colour; opacity is read from
   the object's ``anatomesh_alpha`` property by an Attribute node, so it can be changed per object,
   keyed or driven without touching the material. An optional view-dependent ("oriented")
   transparency makes surfaces more opaque toward their silhouettes, so nested organs stay readable
   (transparency modulated by orientation, Stalling et al. 1999 (Zuse Institute Berlin); a
   variation of Kay & Greenberg 1979, "Transparency for computer synthesized images"): the Layer Weight node's *Facing* output (0 facing the viewer, 1 at grazing
   angles) mixes from the object's opacity up to the edge opacity.
+* Faces where the scan's field of view cut the structure get a second, cut-surface material
+  (:func:`mark_cut_faces`).
 """
 from __future__ import annotations
 
@@ -22,7 +25,8 @@ import bpy
 import numpy as np
 
 from ...core.model.labels import srgb_to_linear
-from . import bridge
+from . import bridge, materials
+from .materials import ORIENTED_GROUP, oriented_alpha_group  # noqa: F401 (the add-on's names)
 
 #: custom properties set on every surface object
 OBJECT_PROPS = (
@@ -32,12 +36,13 @@ OBJECT_PROPS = (
     "anatomesh_series_uid",  # DICOM SeriesInstanceUID ("" otherwise)
     "anatomesh_space",      # "RAS" or "LPS": the space of the vertex coordinates
     "anatomesh_affine",     # voxel index → mm, 16 floats row by row
+    "anatomesh_shape",      # the scan's size in voxels (i, j, k): its field of view, for cut faces
     "anatomesh_units",      # "mm"
     "anatomesh_alpha",      # opacity 0..1 read by the material
     "anatomesh_oriented",   # 0/1: view-dependent transparency on
+    "anatomesh_tissue",     # tissue class (materials.TISSUE_PRESETS): its node group draws it
 )
 
-ORIENTED_GROUP = "Anatomesh Oriented Alpha"
 #: the colour attribute of per-vertex colours that came with a surface (distance, difference maps)
 COLOR_ATTRIBUTE = "anatomesh_color"
 
@@ -82,7 +87,7 @@ def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarra
                 props: Dict, color: Sequence[float] = (0.8, 0.8, 0.8), render_method: str = "DITHERED",
                 shared_index: Optional[np.ndarray] = None,
                 vertex_colors: Optional[np.ndarray] = None,
-                rest: Optional[np.ndarray] = None) -> bpy.types.Object:
+                rest: Optional[np.ndarray] = None, tissue: str = "other") -> bpy.types.Object:
     """Create one surface object in ``collection``.
 
     ``vertices`` (N, 3) mm, ``faces`` (M, 3); ``props`` are written as custom properties (see
@@ -91,7 +96,8 @@ def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarra
     ``anatomesh_rest`` attribute and, when given, each vertex's index in the shared surface set
     as ``anatomesh_vid``.
     ``vertex_colors`` (N, 3|4) sRGB, optional: the colour attribute :data:`COLOR_ATTRIBUTE`
-    (active, shown when the viewport colours by attribute).
+    (active, shown when the viewport colours by attribute). ``tissue``: the material's tissue
+    class (:data:`materials.TISSUE_PRESETS`).
     """
     me = bridge.new_mesh(name, vertices, faces)
     bridge.set_point_attribute(me, bridge.REST_ATTRIBUTE, vertices if rest is None else rest, "vector")
@@ -102,14 +108,26 @@ def add_surface(collection: bpy.types.Collection, name: str, vertices: np.ndarra
     obj = bpy.data.objects.new(name, me)
     for key, val in props.items():
         obj[key] = val
-    for key, default in (("anatomesh_alpha", 1.0), ("anatomesh_oriented", 0.0)):
+    for key, default in (("anatomesh_alpha", 1.0), ("anatomesh_oriented", 0.0),
+                         (materials.TISSUE_PROPERTY, tissue)):
         if key not in obj:
             obj[key] = default
     _property_ui(obj)
     obj.color = linear_rgba(color)  # the Solid viewport's "Object" colour
-    me.materials.append(surface_material(name, color, render_method))
+    me.materials.append(surface_material(name, color, render_method, obj[materials.TISSUE_PROPERTY]))
+    viewport_alpha(obj)
     collection.objects.link(obj)
     return obj
+
+
+def viewport_alpha(obj: bpy.types.Object) -> None:
+    """The Solid view's colours (object and materials) take the object's opacity
+    (``anatomesh_alpha``), so see-through structures are see-through there too."""
+    alpha = float(obj.get("anatomesh_alpha", 1.0))
+    obj.color[3] = alpha
+    for mat in getattr(obj.data, "materials", []):
+        if mat is not None:
+            mat.diffuse_color[3] = alpha
 
 
 def set_vertex_colors(me: bpy.types.Mesh, colors: np.ndarray, name: str = "") -> None:
@@ -152,6 +170,7 @@ def set_alpha(objects: Iterable[bpy.types.Object], alpha: float, oriented: Optio
         o["anatomesh_alpha"] = float(alpha)
         if oriented is not None:
             o["anatomesh_oriented"] = 1.0 if oriented else 0.0
+        viewport_alpha(o)
         o.update_tag()
         if o.data is not None:
             o.data.update_tag()
@@ -162,7 +181,7 @@ def set_render_method(objects: Iterable[bpy.types.Object], method: str) -> None:
     for o in objects:
         for mat in getattr(o.data, "materials", []):
             if mat is not None:
-                _render_settings(mat, method)
+                materials.render_settings(mat, method)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -175,107 +194,63 @@ def linear_rgba(color: Sequence[float]) -> tuple:
     return (*[float(c) for c in srgb_to_linear(np.asarray(color[:3], float))], 1.0)
 
 
-def surface_material(name: str, color: Sequence[float], render_method: str = "DITHERED") -> bpy.types.Material:
-    """A new material: Principled BSDF base colour ``color``, opacity from the object.
+def surface_material(name: str, color: Sequence[float], render_method: str = "DITHERED",
+                     tissue: str = "other") -> bpy.types.Material:
+    """A new material: the node group of tissue class ``tissue`` (:mod:`.materials`) with base
+    colour ``color`` (sRGB), opacity from the object.
 
     Alpha = mix(object ``anatomesh_alpha``, oriented alpha, object ``anatomesh_oriented``).
     """
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    rgba = linear_rgba(color)
-    mat.diffuse_color = rgba  # viewport Solid mode "Material" colour
-    nt = mat.node_tree
-    nodes, links = nt.nodes, nt.links
-    bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None) or nodes.new("ShaderNodeBsdfPrincipled")
-    out = next((n for n in nodes if n.type == "OUTPUT_MATERIAL"), None) or nodes.new("ShaderNodeOutputMaterial")
-    if not out.inputs["Surface"].is_linked:
-        links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    bsdf.inputs["Base Color"].default_value = rgba
-    bsdf.inputs["Roughness"].default_value = 0.45
-    if "Coat Weight" in bsdf.inputs:  # a thin wet coat reads as tissue
-        bsdf.inputs["Coat Weight"].default_value = 0.15
-
-    alpha = _object_attribute(nodes, "anatomesh_alpha", (-700, -200))
-    oriented_on = _object_attribute(nodes, "anatomesh_oriented", (-700, -420))
-    group = nodes.new("ShaderNodeGroup")
-    group.node_tree = oriented_alpha_group()
-    group.location = (-480, -260)
-    links.new(alpha.outputs["Fac"], group.inputs["Alpha"])
-    mix = nodes.new("ShaderNodeMix")
-    mix.data_type = "FLOAT"
-    mix.location = (-260, -300)
-    links.new(oriented_on.outputs["Fac"], mix.inputs["Factor"])
-    links.new(alpha.outputs["Fac"], mix.inputs["A"])
-    links.new(group.outputs["Alpha"], mix.inputs["B"])
-    links.new(mix.outputs["Result"], bsdf.inputs["Alpha"])
-    _render_settings(mat, render_method)
-    return mat
+    return materials.organ_material(name, linear_rgba(color), tissue, render_method)
 
 
-def _object_attribute(nodes, name: str, location) -> bpy.types.Node:
-    node = nodes.new("ShaderNodeAttribute")
-    node.attribute_type = "OBJECT"
-    node.attribute_name = name
-    node.label = name
-    node.location = location
-    return node
+def mark_cut_faces(obj: bpy.types.Object, cut: Optional[np.ndarray] = None) -> int:
+    """Give the structure's cut faces its cut-surface material (:func:`materials.cut_material` in
+    the colour of its first material, a slot added when needed; the other faces slot 0).
 
-
-def _render_settings(mat: bpy.types.Material, method: str) -> None:
-    """Transparency that works for surfaces nested inside each other (EEVEE 4.2+; Cycles needs none)."""
-    if hasattr(mat, "surface_render_method"):  # Blender 4.2+
-        mat.surface_render_method = method if method in ("DITHERED", "BLENDED") else "DITHERED"
-        # BLENDED: show the back faces too and sort them within the object
-        mat.use_transparency_overlap = True
-    else:  # pragma: no cover - Blender < 4.2
-        mat.blend_method = "BLEND" if method == "BLENDED" else "HASHED"
-        mat.show_transparent_back = True
-    mat.use_backface_culling = False
-    if hasattr(mat, "use_transparent_shadow"):
-        mat.use_transparent_shadow = True
-
-
-def oriented_alpha_group() -> bpy.types.ShaderNodeTree:
-    """The shared node group: ``Alpha out = mix(Alpha, Edge Alpha, Facing)``.
-
-    Inputs: *Alpha* (opacity facing the viewer), *Edge Alpha* (opacity at the silhouette, default
-    1), *Blend* (Layer Weight blend, 0..1: larger = wider opaque rim). Created once per file; an
-    existing group of that name (perhaps edited by the user) is reused as is.
+    ``cut`` (M,) bool per face; default: the faces on its scan's field-of-view boundary
+    (:func:`~anatomesh.core.geometry.cut_faces.cut_faces` from the object's ``anatomesh_affine``
+    and ``anatomesh_shape``), so it can be called again after the faces changed (decimation, the
+    print tools). Returns how many faces are marked.
     """
-    ng = bpy.data.node_groups.get(ORIENTED_GROUP)
-    if ng is not None and ng.bl_idname == "ShaderNodeTree":
-        return ng
-    ng = bpy.data.node_groups.new(ORIENTED_GROUP, "ShaderNodeTree")
-    iface = ng.interface
-    s = iface.new_socket("Alpha", in_out="INPUT", socket_type="NodeSocketFloat")
-    s.default_value, s.min_value, s.max_value = 0.3, 0.0, 1.0
-    s = iface.new_socket("Edge Alpha", in_out="INPUT", socket_type="NodeSocketFloat")
-    s.default_value, s.min_value, s.max_value = 1.0, 0.0, 1.0
-    s = iface.new_socket("Blend", in_out="INPUT", socket_type="NodeSocketFloat")
-    s.default_value, s.min_value, s.max_value = 0.35, 0.0, 1.0
-    iface.new_socket("Alpha", in_out="OUTPUT", socket_type="NodeSocketFloat")
-    nodes, links = ng.nodes, ng.links
-    gin = nodes.new("NodeGroupInput")
-    gin.location = (-500, 0)
-    gout = nodes.new("NodeGroupOutput")
-    gout.location = (300, 0)
-    lw = nodes.new("ShaderNodeLayerWeight")
-    lw.location = (-250, -150)
-    links.new(gin.outputs["Blend"], lw.inputs["Blend"])
-    mix = nodes.new("ShaderNodeMix")
-    mix.data_type = "FLOAT"
-    mix.clamp_factor = True
-    mix.location = (50, 0)
-    links.new(lw.outputs["Facing"], mix.inputs["Factor"])
-    links.new(gin.outputs["Alpha"], mix.inputs["A"])
-    links.new(gin.outputs["Edge Alpha"], mix.inputs["B"])
-    links.new(mix.outputs["Result"], gout.inputs["Alpha"])
-    return ng
+    me = obj.data
+    if cut is None:
+        cut = _faces_on_scan_boundary(obj)
+    cut = np.asarray(cut, bool)
+    if len(cut) != len(me.polygons) or not len(me.materials) or me.materials[0] is None:
+        return 0
+    slot = next((i for i, m in enumerate(me.materials) if m is not None and m.node_tree is not None
+                 and materials.CUT_NODE in m.node_tree.nodes), None)
+    if slot is None and cut.any():
+        first = me.materials[0]
+        affine, shape = obj.get("anatomesh_affine"), obj.get("anatomesh_shape")
+        spacing = materials.HATCH_MM if affine is None or shape is None else \
+            materials.hatch_spacing(np.reshape(list(affine), (4, 4)), list(shape))
+        me.materials.append(materials.cut_material(f"{obj.name} cut", materials.base_color(first),
+                                                   getattr(first, "surface_render_method", "DITHERED"),
+                                                   spacing))
+        slot = len(me.materials) - 1
+    if slot is not None:
+        me.polygons.foreach_set("material_index", np.where(cut, slot, 0).astype(np.int32))
+        me.update()
+        viewport_alpha(obj)
+    return int(cut.sum())
+
+
+def _faces_on_scan_boundary(obj: bpy.types.Object) -> np.ndarray:
+    """(M,) bool: the object's faces on its scan's field-of-view boundary (none without the
+    scan's affine and shape)."""
+    from ...core.geometry.cut_faces import cut_faces
+
+    affine, shape = obj.get("anatomesh_affine"), obj.get("anatomesh_shape")
+    vertices, faces = bridge.arrays(obj.data)
+    if affine is None or shape is None or len(faces) != len(obj.data.polygons):
+        return np.zeros(len(obj.data.polygons), bool)
+    return cut_faces(vertices, faces, np.reshape(list(affine), (4, 4)), tuple(int(n) for n in shape))
 
 
 # ---------------------------------------------------------------------------------------------
-# camera framing (examples, "Frame scan" button in background mode)
+# bounds (framing the viewports; the camera views are in camera.py)
 # ---------------------------------------------------------------------------------------------
 def bounds(objects: Iterable[bpy.types.Object]) -> Optional[np.ndarray]:
     """World-space bounding box (2, 3) mm of the objects' vertices, or None when empty."""
@@ -287,52 +262,3 @@ def bounds(objects: Iterable[bpy.types.Object]) -> Optional[np.ndarray]:
         corners = np.array([m @ np.r_[c[:], 1.0] for c in o.bound_box])[:, :3]
         lo, hi = np.minimum(lo, corners.min(0)), np.maximum(hi, corners.max(0))
     return None if not np.all(np.isfinite(lo)) else np.stack([lo, hi])
-
-
-def frame_camera(scene: bpy.types.Scene, objects, space: str = "RAS", view: str = "ANTERIOR",
-                 elevation: float = 0.0, azimuth: float = 0.0, lens: float = 50.0,
-                 margin: float = 1.05) -> bpy.types.Object:
-    """Point the scene camera (made if missing) at the objects from the patient's front or back.
-
-    ``view`` "ANTERIOR" puts the camera in front of the patient (+y in RAS, −y in LPS),
-    "POSTERIOR" behind; ``elevation`` (degrees) raises it toward the head, ``azimuth`` turns it
-    around the patient's long (z) axis. The distance is the smallest at which all eight corners of
-    the bounding box fit in the frame (times ``margin``).
-    """
-    box = bounds(objects)
-    if box is None:
-        raise ValueError("nothing to frame")
-    centre = box.mean(0)
-    front = 1.0 if space == "RAS" else -1.0
-    if view == "POSTERIOR":
-        front = -front
-    el, az = np.radians(elevation), np.radians(azimuth)
-    # unit vector from the centre toward the camera
-    to_cam = np.array([np.sin(az) * np.cos(el), front * np.cos(az) * np.cos(el), np.sin(el)])
-    forward = -to_cam / np.linalg.norm(to_cam)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    cam = scene.camera
-    if cam is None:
-        cam = bpy.data.objects.new("Anatomesh Camera", bpy.data.cameras.new("Anatomesh Camera"))
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-    cam.data.lens = lens
-    cam.data.sensor_fit = "AUTO"
-    aspect = (scene.render.resolution_x * scene.render.pixel_aspect_x) / max(
-        1.0, scene.render.resolution_y * scene.render.pixel_aspect_y)
-    tan_big = 0.5 * cam.data.sensor_width / lens
-    tan_w, tan_h = (tan_big, tan_big / aspect) if aspect >= 1 else (tan_big * aspect, tan_big)
-    corners = np.array([[x, y, z] for x in box[:, 0] for y in box[:, 1] for z in box[:, 2]]) - centre
-    cx, cy, cz = corners @ right, corners @ up, corners @ forward
-    dist = float(max(np.max(np.abs(cx) * margin / tan_w - cz), np.max(np.abs(cy) * margin / tan_h - cz)))
-    location = centre - forward * dist
-    cam.location = tuple(location)
-    from mathutils import Vector
-
-    cam.rotation_euler = Vector(tuple(forward)).to_track_quat("-Z", "Y").to_euler()
-    size = float(np.linalg.norm(box[1] - box[0]))
-    cam.data.clip_start = max(0.1, (dist - size) * 0.5)
-    cam.data.clip_end = dist + 2.0 * size
-    return cam

@@ -141,9 +141,28 @@ class ANATOMESH_PT_look(_Base, Panel):
             box.label(text=obj.name, icon="OBJECT_DATA")
             box.prop(obj, '["anatomesh_alpha"]', text="Opacity", slider=True)
             box.prop(obj, "color", text="Viewport colour")
+            tissue = str(obj.get("anatomesh_tissue", "other"))
+            box.operator_menu_enum("anatomesh.set_tissue", "tissue", text=f"Tissue: {tissue.capitalize()}",
+                                   icon="MATERIAL")
             # distance colours: every surface by its distance to this one
             box.operator("anatomesh.paint_margins", icon="DRIVER_DISTANCE").target = obj.name
-        layout.operator("anatomesh.frame_camera", icon="CAMERA_DATA").collection = coll.name
+        _camera_rows(layout, context, coll)
+        row = layout.row(align=True)
+        row.prop(context.scene.anatomesh_recipe, "light", text="Light")
+        row.operator("anatomesh.apply_lights", text="Apply", icon="LIGHT_AREA").collection = coll.name
+
+
+def _camera_rows(layout, context, coll) -> None:
+    """View presets, labels on the selection, the turntable (frames from the recipe's setting)."""
+    box = layout.box()
+    box.label(text="Camera", icon="CAMERA_DATA")
+    box.operator_menu_enum("anatomesh.frame_camera", "view", text="Frame View")  # the active scan
+    box.operator("anatomesh.label_selected", icon="FONT_DATA").collection = coll.name
+    row = box.row(align=True)
+    row.prop(context.scene.anatomesh_recipe, "turntable", text="Frames")
+    op = row.operator("anatomesh.render_turntable", text="Turntable", icon="RENDER_ANIMATION")
+    op.collection, op.frames = coll.name, context.scene.anatomesh_recipe.turntable or 36
+    op.directory = context.scene.anatomesh.export_dir
 
 
 class ANATOMESH_PT_export(_Base, Panel):

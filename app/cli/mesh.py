@@ -24,7 +24,7 @@ SMOOTHING_FLAGS = ("smooth", "iterations", "lam", "mu", "max_deviation", "dampin
 DECIMATION_FLAGS = ("decimate", "target_faces", "max_error", "lod")
 PRINT_FLAGS = ("thicken", "clearance", "check", "profile", "min_wall", "min_gap")
 HOLLOW_FLAGS = ("hollow", "drain_holes", "drain_diameter")
-OUTPUT_FLAGS = ("report", "overwrite")
+OUTPUT_FLAGS = ("report", "overwrite", "style", "views", "turntable", "labels_on", "light")
 PREPROCESS_FLAGS = ("resample", "resample_method", "roi", "smooth_volume", "interpolate", "fuzzy_boundary",
                     "fill_cavities", "close_handles", "fuzzy", "precise", "difference_colors")
 #: flags of add_input_args (shared with inspect) that set the Recipe field of the same name

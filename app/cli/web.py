@@ -17,11 +17,11 @@ from .settings_args import add_setting_args, flag_values
 
 
 #: the distance colouring and page settings (``mesh`` and ``web``), flags made from their definitions
-DISTANCE_FLAGS = ("distance_to", "margins", "web_levels")
+DISTANCE_FLAGS = ("distance_to", "margins", "web_levels", "web_views")
 
 
 def add_distance_args(p: argparse.ArgumentParser) -> None:
-    """``--distance-to``, ``--margins`` and ``--web-levels`` (``mesh`` and ``web``)."""
+    """``--distance-to``, ``--margins``, ``--web-levels`` and ``--web-views`` (``mesh`` and ``web``)."""
     add_setting_args(p, DISTANCE_FLAGS)
 
 
@@ -43,13 +43,15 @@ def add_parser(subs) -> argparse.ArgumentParser:
 def cmd_web(args) -> int:
     from ..web.page import write_page
     from ..web.models import models_of_inputs
+    from ..web.views import read_views
 
     settings = Recipe(**flag_values(args, DISTANCE_FLAGS))  # checked as a run checks them
     read_number_lists(settings)
     check_values(settings)
+    views = read_views(settings.web_views) if settings.web_views else []
     models = models_of_inputs(args.inputs, n_levels=settings.web_levels, distance_to=settings.distance_to,
                               margins=settings.margins, progress=TerminalProgress("levels"))
-    summary = write_page(models, args.out, title=args.title or "", overwrite=args.overwrite)
+    summary = write_page(models, args.out, title=args.title or "", overwrite=args.overwrite, views=views)
     if args.report:
         write_json(summary, args.report)
     sizes = ", ".join(f"{lv['file']} {lv['triangles']:,} triangles {lv['bytes'] / 1e6:.2f} MB"

@@ -22,7 +22,8 @@ from ...core.model.mesh import Mesh
 from ...core.model.progress import Progress, report
 from ...core.model.surfaceset import SurfaceSet
 from ...core.model.volume import Volume
-from .recipe import DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS, WEB_FORMAT, Recipe
+from .recipe import (BLENDER_FORMATS, DICOM_FORMAT, RECIPE_FILE, SCENE_ONLY_FORMATS, SURFACE_FORMATS,
+                     WEB_FORMAT, Recipe)
 from .stages import clean, output_shells
 
 #: entry-point group through which the add-on offers its ``.blend``/PNG writer (pyproject.toml)
@@ -30,6 +31,8 @@ BLENDER_ENTRY_POINTS = "anatomesh.blender"
 _BLENDER_WRITER: List[Callable] = []
 #: file suffix of a format when it is not the format's name
 FILE_SUFFIX = {DICOM_FORMAT: "dcm"}
+#: the turntable's folder of frames (and, with ".mp4", its video) in the output folder
+TURNTABLE = "turntable"
 
 
 @dataclass
@@ -75,8 +78,14 @@ def plan(meshes: List[Mesh], volume: Volume, recipe: Recipe) -> Plan:
     name = stem if all(out_dir / f"{stem}.{f}" not in taken for f in ("3mf", "glb")) else f"{stem}_all"
     scene = {fmt: out_dir / f"{name}.{fmt}" for fmt in ("3mf",) + SCENE_ONLY_FORMATS
              if fmt in recipe.formats}
+    if "png" in scene and list(recipe.views) != ["anterior"]:  # several views: one PNG each
+        del scene["png"]
+        scene.update({f"png_{v}": out_dir / f"{name}_{v}.png" for v in recipe.views})
     lods = [out_dir / f"{stem}_lod{i}.glb" for i in range(recipe.lod if recipe.lod > 1 else 0)]
     p = Plan(per_surface, scene, lods, report_path, report_path.parent / RECIPE_FILE, stem)
+    if recipe.turntable:  # the frames' folder and the video
+        scene.update(turntable=out_dir / TURNTABLE, mp4=out_dir / f"{TURNTABLE}.mp4")
+        p.extra += [out_dir / TURNTABLE / f"frame_{i:04d}.png" for i in range(1, recipe.turntable + 1)]
     if WEB_FORMAT in recipe.formats:  # the page's folder
         from ..web.page import page_paths
 
@@ -157,6 +166,18 @@ def write_lods(surfaces: SurfaceSet, recipe: Recipe, p: Plan,
 def web_dir(recipe: Recipe) -> Path:
     """The folder of the "web" output: ``<out>/web`` (open ``index.html`` there)."""
     return Path(recipe.out_dir) / "web"
+
+
+def needs_blender(recipe: Recipe) -> bool:
+    """True when the run writes something only Blender makes (blend, png, a turntable)."""
+    return any(f in BLENDER_FORMATS for f in recipe.formats) or bool(recipe.turntable)
+
+
+def pictures(p: Plan) -> Dict[str, Path]:
+    """The still pictures of a plan by view (``png`` alone: the default view)."""
+    if "png" in p.scene:
+        return {"anterior": p.scene["png"]}
+    return {k[4:]: v for k, v in p.scene.items() if k.startswith("png_")}
 
 
 def register_blender_writer(writer: Callable) -> None:

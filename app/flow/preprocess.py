@@ -184,12 +184,13 @@ def extract(volume: Volume, recipe: Recipe, pre: Optional[Preprocessing],
 def _fuzzy_boundary(volume, recipe, plain, pre, progress) -> SurfaceSet:
     t0 = time.perf_counter()
     fields = fuzzy_boundary(volume, select_labels(volume, recipe.labels), progress=progress)
-    table = volume.labels or {}
+    table = {**(volume.labels or {}), **plain.labels}  # the plain surfaces' styled colours
     meshes = []
     for value, fld in fields.items():
         m = isosurfaces(fld, [ISOVALUE], cap=True)[0]
         info = table.get(value) or LabelInfo(value, f"label_{value}")
-        m.name, m.value, m.color = info.name, float(value), tuple(info.color)
+        m.name, m.value, m.color = info.name, float(value), info.mesh_color()
+        m.meta["material"] = info.material
         meshes.append(m)
     out = SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
     entry = _entry("fuzzy_boundary", {"isovalue": ISOVALUE, "steps_voxels": 3}, t0, volume,

@@ -50,6 +50,10 @@ SCENE_ONLY_FORMATS = ("glb", "blend", "png")
 WEB_FORMAT = "web"
 FORMATS = SURFACE_FORMATS + SCENE_ONLY_FORMATS + (WEB_FORMAT,)
 BLENDER_FORMATS = ("blend", "png")
+#: camera views of the png (the side of the patient the camera stands at), the default first
+VIEWS = ("anterior", "posterior", "lateral_left", "lateral_right", "superior", "inferior", "oblique")
+#: light presets of the .blend and png (studio: key, fill and rim; atlas: bright and even), the default first
+LIGHTS = ("studio", "atlas")
 STAIRCASE = ("auto", "on", "off")
 PROFILES = tuple(PRINTER_PROFILES)
 RECIPE_FILE = "recipe.toml"
@@ -75,7 +79,9 @@ SECTION_NOTES = {
              "(groups of labels), thicken, clearance_mm; tools: hollow_mm (wall), drain_holes, "
              "drain_diameter_mm, connectors (label pairs), fit_mm (build volume [x, y, z]: cut parts to fit), "
              "fit_connectors (pins across the cuts)",
-    "output": "formats: stl, ply, obj, 3mf, dicom, glb, blend, png, web; lod: GLB levels of detail (0: none)",
+    "output": "formats: stl, ply, obj, 3mf, dicom, glb, blend, png, web; lod: GLB levels of detail (0: none); "
+              "views: camera views of the png; turntable: frames of a turn around the body; labels_on: "
+              "structures labelled in the png; style: a style table (TOML) over the default colours",
     "distance": "colour every surface by its distance (mm) to the structure `to` (name or value): "
                 "within margins_mm red, yellow, green",
     "web": "the web page (format web): levels of detail, coarsest shown first",
@@ -112,7 +118,12 @@ class Recipe:
     their interface, clearance from the profile (:mod:`anatomesh.core.printing.connectors`).
     ``fit`` — the printer's build volume [x, y, z] mm: parts too big are cut into pieces that fit
     (``<part>_1``, ...), with pins across the cuts when ``fit_connectors`` (:mod:`anatomesh.app.flow.fit`).
-    ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output.
+    ``render_samples``/``render_size``: Cycles samples and pixel size of the "png" output; ``light``:
+    the light preset of the .blend and png (:data:`LIGHTS`);
+    ``views``: its camera views (:data:`VIEWS`; one PNG each, ``<scan>.png`` for the default alone,
+    else ``<scan>_<view>.png``), ``turntable``: N frames of a full turn about the patient's long axis
+    (``turntable/frame_0001.png`` .., and ``turntable.mp4`` where Blender has FFmpeg),
+    ``labels_on``: structures (names) given leader-line labels in the views.
     ``grid``: the grid structures of a mask folder are meshed on (a mask name or "image"; default the
     finest), or for DICOM SEG/RTSTRUCT "image" (the referenced series) or "native" (the object's own
     planes). ``contours``: RTSTRUCT contours to surfaces by "raster" (even-odd rasterisation + shape-based
@@ -127,6 +138,7 @@ class Recipe:
     surface is coloured by its vertices' distance to that one's surface, within each of
     ``margins`` (mm, default 2, 5, 10) red, yellow, green (:mod:`anatomesh.core.geometry.margins`);
     ``web_levels`` — levels of detail of the "web" page (:mod:`anatomesh.app.web.page`), 1..4.
+    ``web_views`` — a file of named views the page lists (:mod:`anatomesh.app.web.views`).
     """
     NOTES: ClassVar[Dict[str, str]] = SECTION_NOTES
 
@@ -268,10 +280,29 @@ class Recipe:
                                     flag="--report")
     overwrite: bool = setting(False, "output", "overwrite", "bool", "replace existing output files",
                               flag="--overwrite")
+    style: Optional[str] = setting(None, "output", "style", "path",
+                                   "style table (TOML): colour, material and opacity per structure "
+                                   "over the default (docs/STYLES.md)", flag="--style")
     render_samples: int = setting(32, "output", "render_samples", "int", "Cycles samples of the png", low=1)
     render_size: List[int] = setting(None, "output", "render_size", "ints", "pixel size of the png",
                                      allowed="[width, height] in pixels", count=(2,),
                                      factory=lambda: [960, 540], low=16)
+    light: str = setting("studio", "output", "light", "str",
+                         "light of the .blend and png: studio (key, fill and rim lights, dark backdrop) or "
+                         "atlas (bright even light, light backdrop)", choices=LIGHTS, flag="--light")
+    views: List[str] = setting(None, "output", "views", "strs",
+                               "camera views of the png, each framing the anatomy: anterior, posterior, "
+                               "lateral_left, lateral_right, superior, inferior, oblique (one PNG each)",
+                               allowed="a list of view names", factory=lambda: ["anterior"], flag="--view",
+                               metavar="VIEW")
+    turntable: int = setting(0, "output", "turntable", "int",
+                             "render N frames of a full turn around the patient's long axis into "
+                             "turntable/frame_NNNN.png (and turntable.mp4 where Blender has FFmpeg)",
+                             flag="--turntable", metavar="N", low=0, high=720)
+    labels_on: List[str] = setting(None, "output", "labels_on", "strs",
+                                   "structures (names) labelled in the png views, each by a leader line",
+                                   allowed="a list of structure names", factory=list, flag="--labels-on",
+                                   metavar="NAMES")
     lod: int = setting(0, "output", "lod", "int",
                      "also write N GLB levels of detail, <scan>_lod0.glb (finest) .. _lod{N-1}.glb, each half "
                      "the faces of the one before, from one progressive decimation run", flag="--lod", metavar="N", low=0, high=8)
@@ -286,6 +317,10 @@ class Recipe:
                                    metavar="MM")
     web_levels: int = setting(2, "web", "levels", "int", "levels of detail of the web page, the coarsest shown first",
                               low=1, high=4, flag="--web-levels", metavar="N")
+    web_views: Optional[str] = setting(None, "web", "views", "path",
+                                       "saved views listed in the web page: a TOML or JSON file of name = URL "
+                                       "fragment or table (keys hide, opacity, clip, view, camera, measure)",
+                                       flag="--web-views", metavar="FILE")
 
     def smoothing_overrides(self) -> Dict:
         """What this recipe sets of the smoothing preset's own settings (``iterations``, ``lam``,
@@ -323,9 +358,27 @@ def check_recipe(recipe: Recipe) -> None:
     recipe.fit = check_fit(recipe.fit)  # cut to fit
     if len(recipe.render_size) != 2:
         raise AnatomeshError(f"render_size is [width, height] in pixels, got {recipe.render_size!r}")
+    check_views(recipe)
     from ...core.geometry.margins import check_margins  # distance colouring
 
     recipe.margins = list(check_margins(recipe.margins))
+    if recipe.web_views:  # the page's saved views: a bad file is refused before reading the scan
+        from ..web.views import read_views
+
+        read_views(recipe.web_views)
+
+
+def check_views(recipe: Recipe) -> None:
+    """The camera settings as lists (a flag gives a comma text), views in lower case and known, in
+    place; one-line error naming the unknown view."""
+    for name in ("views", "labels_on"):
+        value = getattr(recipe, name)
+        if isinstance(value, str):
+            setattr(recipe, name, [v.strip() for v in value.split(",") if v.strip()])
+    recipe.views = [str(v).strip().lower() for v in recipe.views] or ["anterior"]
+    bad = [v for v in recipe.views if v not in VIEWS]
+    if bad:
+        raise AnatomeshError(f"unknown --view {','.join(bad)}; use a comma list of {', '.join(VIEWS)}")
 
 
 #: the Recipe's sections (:func:`~anatomesh.app.flow.settings.sections`)

@@ -59,7 +59,7 @@ def build_report(result: Result) -> Dict:
     for key in ("lod", "fixes", "print_check"):
         if getattr(result, key):
             out[key] = getattr(result, key)
-    for key in ("distance", "web", "preprocess"):
+    for key in ("distance", "web", "preprocess", "render"):
         if getattr(result, key, None):
             out[key] = getattr(result, key)
     out["warnings"] = list(result.warnings)

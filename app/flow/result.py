@@ -39,6 +39,7 @@ class Result:
     input_facts: Optional[Dict] = None  # the input's facts for the report (describe, no histogram)
     surface_sizes: Optional[List] = None  # per surface (topology, area, volume): report.surface_sizes
     pinch_points: Optional[Dict] = None  # pinch points resolved in the shells (stages.output_shells)
+    render: Optional[Dict] = None  # the Blender pictures: views (filled fractions), labels, turntable
 
     @property
     def report_path(self):

@@ -22,7 +22,7 @@ from ...core.model.volume import Volume
 from . import outputs, stages, web_page
 from . import report as reports
 from .preprocess_settings import active as preprocessing_asked
-from .recipe import BLENDER_FORMATS, Recipe, check_recipe
+from .recipe import Recipe, check_recipe
 from .result import Result
 
 
@@ -37,7 +37,7 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     recipe = copy.deepcopy(recipe)  # the run resolves its own copy: the caller's stays as asked
     check_recipe(recipe)
     outputs.refuse_existing(recipe)
-    blender = outputs.blender_writer() if any(f in BLENDER_FORMATS for f in recipe.formats) else None
+    blender = outputs.blender_writer() if outputs.needs_blender(recipe) else None
     clock = _Clock(progress)
     clock.start("read", 0.0, "reading")
     volume = stages.read(recipe, clock.sub(0.1))
@@ -61,8 +61,13 @@ def run(recipe: Recipe, progress: Optional[Progress] = None, keep_voxels: bool =
     res.web = web_page.write_web(res, clock.sub(0.85))
     if blender is not None:
         clock.start("blender", 0.85, "building the Blender scene")
-        blender(res, res.plan.scene.get("blend"), render_png=res.plan.scene.get("png"),
-                samples=recipe.render_samples, size=tuple(recipe.render_size))
+        res.render = blender(res, res.plan.scene.get("blend"), render_png=outputs.pictures(res.plan),
+                             samples=recipe.render_samples, size=tuple(recipe.render_size),
+                             labels_on=recipe.labels_on, turntable=recipe.turntable,
+                             turntable_dir=res.plan.scene.get("turntable"), video=res.plan.scene.get("mp4"),
+                             light=recipe.light)
+        if "mp4" in res.plan.scene and not res.plan.scene["mp4"].exists():  # Blender without FFmpeg
+            del res.plan.scene["mp4"]
     if recipe.check:
         from ...core.printing.checks import check_parts  # speed: loaded only when asked for
 

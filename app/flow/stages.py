@@ -8,7 +8,9 @@ surfaces:
 :func:`read`             the recipe's input as a Volume (or a Segmentation of layers)
 :func:`prepare_volume`   print fixes on a label map before extraction (fuse labels, thicken)
 :func:`extract`          a :class:`~anatomesh.core.model.surfaceset.SurfaceSet`: conforming
-                         shells of a label map, or one isosurface per level of a scan
+                         shells of a label map, or one isosurface per level of a scan, styled
+:func:`style`            colours, materials, opacities from the style table; touching
+                         structures' colours moved apart
 :func:`drop_specks`      an isosurface set without its specks (before smoothing)
 :func:`smoothing`        the smoothing driver's method and settings for a recipe
 :func:`smooth`           the default (guarded) smoothing of the whole set
@@ -102,13 +104,14 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
     of ``recipe.labels``), or a scan's isosurfaces at ``recipe.levels`` (one label per level)."""
     source = volume.meta.get("source")
     if recipe.contours == CONTOURS_TILE and volume.meta.get("contours"):
-        return tiled_surfaces(volume, recipe)
+        return style(tiled_surfaces(volume, recipe), recipe)
     if volume.is_label_map:
         if recipe.levels:
             raise AnatomeshError("--level is for scalar scans; this is a label map (use --labels)", source)
         from ...core.extract.multilabel import label_surfaces
 
-        return label_surfaces(volume, values=select_labels(volume, recipe.labels), progress=progress)
+        return style(label_surfaces(volume, values=select_labels(volume, recipe.labels),
+                                    progress=progress), recipe)
     if not recipe.levels:
         raise AnatomeshError("this is a scalar scan: give one or more isovalues with --level "
                              "(see `anatomesh inspect` for the histogram peaks)", source)
@@ -117,7 +120,27 @@ def extract(volume: Volume, recipe: Recipe, progress: Optional[Progress] = None)
     meshes = isosurfaces(volume, list(recipe.levels), cap=recipe.cap, progress=progress)
     for m, name in zip(meshes, recipe.level_names):
         m.name = name
-    return SurfaceSet.from_meshes(meshes, volume.affine, volume.space)
+    return style(SurfaceSet.from_meshes(meshes, volume.affine, volume.space), recipe)
+
+
+def style(surfaces: SurfaceSet, recipe: Recipe) -> SurfaceSet:
+    """``surfaces`` with each label's colour, material class and opacity from the recipe's style
+    table (``recipe.style`` over the default, :mod:`anatomesh.core.model.style`), then the colours
+    of touching structures moved apart to CIE76 ΔE >= 12 (two bones: a small step;
+    :func:`anatomesh.core.model.contrast.separate_colors`). Colours the user gave (a colour
+    table, DICOM display colours, a colour in the style file) stay as they are; names the style
+    table does not know keep their colour. Every door shows these colours."""
+    from ...core.model.contrast import separate_colors, touching_pairs
+    from ...core.model.labels import fixed_colors, style_table
+    from ...core.model.style import load_style
+
+    if not surfaces.labels:
+        return surfaces
+    table = load_style(recipe.style)
+    labels = style_table(surfaces.labels, table)
+    fixed = fixed_colors(labels, table)
+    surfaces.labels = separate_colors(labels, touching_pairs(surfaces), fixed=fixed)
+    return surfaces
 
 
 def drop_specks(surfaces: SurfaceSet) -> SurfaceSet:

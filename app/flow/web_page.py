@@ -13,6 +13,7 @@ from ...core.model.progress import Progress, sub
 from ...core.model.surfaceset import SurfaceSet
 from ..web.models import level_ratios
 from ..web.page import WebModel, write_page
+from ..web.views import read_views
 from .outputs import relative, web_dir
 from .recipe import WEB_FORMAT
 from .stages import clean, output_shells, voxel_volume
@@ -59,8 +60,9 @@ def write_web(result, progress: Optional[Progress] = None) -> Optional[Dict]:
     recipe = result.recipe
     if WEB_FORMAT not in recipe.formats or not result.surfaces:
         return None
+    views = read_views(recipe.web_views) if recipe.web_views else []
     model = model_of_run(result, sub(progress, 0.0, 0.6))
     summary = write_page([model], web_dir(recipe), title=result.plan.stem, overwrite=True,  # plan() checked
-                         progress=sub(progress, 0.6, 1.0))
+                         views=views, progress=sub(progress, 0.6, 1.0))
     summary["page"] = relative(Path(summary["page"]), result.plan.report.parent.resolve())
     return summary

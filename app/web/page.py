@@ -6,22 +6,28 @@ What :func:`write_page` writes into the folder::
     viewer.js         three.js + meshoptimizer's decoder + Anatomesh's viewer, one minified
                       classic script (built from web/ with npm, shipped in the package)
     LICENSES.txt      the licences of the bundled libraries
-    scene.js          the scene: models, structures (name, system, colour, volume), levels
+    scene.js          the scene: models, structures (name, system, colour, opacity, volume),
+                      levels, saved views
     data/lodK.js      one script per level of detail (lod0 the full detail), compressed surfaces
 
 Every file is a classic script or the page itself, so the page works from ``file://`` (where
 browsers refuse ``fetch`` and modules) and from any static server. The levels load coarsest
 first: the first picture comes from the coarse level, the finer ones replace it as they arrive
 (progressive transmission of levels of detail; the levels come from one progressive decimation
-run, Hoppe 1996, "Progressive meshes"). Surfaces are compressed with meshoptimizer's codecs
+run, Hoppe 1996, "Progressive meshes"); the full detail is drawn before the page's load event,
+so a plain screenshot shows it. Surfaces are compressed with meshoptimizer's codecs
 (:mod:`anatomesh.app.web.pack`); a structure that several models share (resection variants) is
 stored once.
 
 The page's tree groups structures by body system (:func:`anatomesh.core.model.labels.structure_system`);
 each has visibility and opacity; see-through structures are drawn back faces then front faces,
 sorted per object (nested shells right), with optional oriented transparency (Stalling, Zöckler &
-Hege 1999); hover or click names a structure with its volume; a clipping plane, a reset button
-and a scale bar in mm (orthographic view: the bar holds at every depth).
+Hege 1999); a structure's default opacity is its colour's alpha. Hover or click names a structure
+with its volume; a clipping plane whose cuts are capped in each structure's colour; named views;
+a measuring tool (distances between points, and to the nearest other structure, mm); a reset
+button and a scale bar in mm (orthographic view: the bar holds at every depth). The page keeps
+its view in the URL's fragment (:mod:`anatomesh.app.web.views` lists the keys), and the views
+given to :func:`write_page` are listed in it.
 """
 from __future__ import annotations
 
@@ -74,8 +80,9 @@ def page_paths(out_dir, n_levels: int) -> List[Path]:
 
 
 def write_page(models: Sequence[WebModel], out_dir, *, title: str = "", overwrite: bool = False,
-               progress: Optional[Progress] = None) -> Dict:
-    """Write the page of ``models`` into the folder ``out_dir`` (made if missing).
+               views: Sequence[Dict[str, str]] = (), progress: Optional[Progress] = None) -> Dict:
+    """Write the page of ``models`` into the folder ``out_dir`` (made if missing); ``views``
+    (``[{"name", "fragment"}]``, :func:`anatomesh.app.web.views.read_views`) are listed in it.
 
     Raises :class:`AnatomeshError` when a file exists and ``overwrite`` is not set (nothing is
     written then), for models without surfaces or with different numbers of levels, or when
@@ -107,15 +114,23 @@ def write_page(models: Sequence[WebModel], out_dir, *, title: str = "", overwrit
     scene = {"format": SCENE_FORMAT, "title": title or models[0].name, "units": "mm",
              "frame": "display: +x patient left, +y superior, +z anterior (mm)",
              "space": models[0].levels[-1][0].space, "systems": list(SYSTEMS),
-             "quantization": q.as_dict(), "levels": levels, "models": scene_models}
+             "quantization": q.as_dict(), "levels": levels, "models": scene_models,
+             "views": [{"name": v["name"], "fragment": v["fragment"]} for v in views]}
     _write_text(out / SCENE, "window.ANATOMESH_SCENE = " + json.dumps(scene, separators=(",", ":")) + ";\n")
     template = (VIEWER_DIR / PAGE).read_text(encoding="utf-8")
     _write_text(out / PAGE, template.replace("__TITLE__", html.escape(scene["title"]))
-                .replace("__FIRST_LEVEL__", level_file(0, n)))  # fetched while viewer.js is parsed
+                .replace("__LEVEL_SCRIPTS__", level_script_tag(n)))
     for name in VIEWER_FILES:
         shutil.copyfile(VIEWER_DIR / name, out / name)
     report(progress, 1.0, "page written")
     return _summary(out, levels, scene_models, packs, q.step)
+
+
+def level_script_tag(n_levels: int) -> str:
+    """index.html's tag of the coarsest level's script (parsed with the page, fetched while
+    viewer.js is parsed; the viewer requests the finer ones as it starts); a missing file is
+    named on the page."""
+    return f'<script src="{level_file(0, n_levels)}" onerror="anatomeshMissing(this)"></script>'
 
 
 def _checked(models: Sequence[WebModel]) -> List[WebModel]:
@@ -139,6 +154,9 @@ def _scene_model(model: WebModel, ids: List[List[str]]) -> Dict:
              "volume_mm3": round(abs(signed_volume(m.vertices, m.faces)), 1),
              "area_mm2": round(surface_area(m.vertices, m.faces), 1),
              "geometry": [level_ids[j] for level_ids in ids]}
+        alpha = rgba(m.color)[3]
+        if alpha < 1:
+            s["opacity"] = round(alpha, 3)
         if m.name in shells and shells[m.name]["min_distance_mm"] is not None:
             s["min_distance_mm"] = shells[m.name]["min_distance_mm"]
         structures.append(s)

@@ -89,7 +89,8 @@ def tile_roi(roi: RoiContours, space: str = "LPS") -> Mesh:
     if space != "LPS":
         verts = verts @ space_flip("LPS", space)[:3, :3].T
     return Mesh(verts.astype(np.float32), tris.astype(np.int32), name=roi.info.name,
-                value=roi.info.value, color=tuple(roi.info.color), space=space)
+                value=roi.info.value, color=roi.info.mesh_color(), space=space,
+                meta={"material": roi.info.material})
 
 
 def _slab(loop: _Loop, verts, half: np.ndarray, first: int):

@@ -21,6 +21,7 @@ pixel value = segment number), in any transfer syntax pydicom/pylibjpeg decode (
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Dict, List, Optional, Tuple
 
@@ -191,5 +192,5 @@ def _segments(ds, seg, kind: str) -> Tuple[List[Dict], Dict[int, LabelInfo], Lis
         facts.append(entry)
     table = label_table_for(names, names)
     for n, rgb in colours.items():
-        table[n] = LabelInfo(n, names[n], rgb)
+        table[n] = dataclasses.replace(table[n], color=rgb, color_given=True)
     return facts, table, []

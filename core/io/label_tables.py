@@ -191,7 +191,7 @@ def _parse_itksnap(text: str) -> Dict[int, LabelInfo]:
         if m:
             v = int(m.group(1))
             rgb = tuple(min(255, int(m.group(i))) / 255.0 for i in (2, 3, 4))
-            out[v] = LabelInfo(v, m.group(8).strip() or f"label_{v}", rgb)
+            out[v] = LabelInfo(v, m.group(8).strip() or f"label_{v}", rgb, color_given=True)
     return out
 
 
@@ -205,7 +205,7 @@ def _parse_slicer_csv(text: str) -> Dict[int, LabelInfo]:
         for row in csv.DictReader(text.lstrip().splitlines()):
             v = int(row["LabelValue"])
             rgb = tuple(float(row[c]) / 255.0 for c in ("Color_R", "Color_G", "Color_B"))
-            out[v] = LabelInfo(v, (row.get("Name") or f"label_{v}").strip(), rgb)
+            out[v] = LabelInfo(v, (row.get("Name") or f"label_{v}").strip(), rgb, color_given=True)
     except (KeyError, ValueError, TypeError):
         return {}
     return out
@@ -234,7 +234,7 @@ def _parse_columns(text: str) -> Dict[int, LabelInfo]:
             rgb_tokens = parts[len(parts) - nums:len(parts) - nums + 3]
             name = " ".join(parts[1:len(parts) - nums])
             rgb = tuple(min(255, max(0, int(t))) / 255.0 for t in rgb_tokens)
-            out[v] = LabelInfo(v, name, rgb)
+            out[v] = LabelInfo(v, name, rgb, color_given=True)
         else:
             named[v] = " ".join(parts[1:])
     if named:

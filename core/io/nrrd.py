@@ -331,7 +331,7 @@ def _merge_segments(layers: np.ndarray, segments: List[Dict], p: Path):
     names = {}
     for s, v in zip(segments, new_values):
         color = s["color"]
-        names[v] = LabelInfo(v, s["name"], color) if color is not None else s["name"]
+        names[v] = LabelInfo(v, s["name"], color, color_given=True) if color is not None else s["name"]
     present = set(distinct_values(out).tolist())
     empty = [s["name"] for s, v in zip(segments, new_values) if v not in present]
     if empty:

@@ -18,13 +18,14 @@ The contours stay in ``meta["contours"]`` so they can also be tiled directly
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import List, Optional, Tuple
 
 import numpy as np
 
 from ..model.errors import AnatomeshError
-from ..model.labels import LabelInfo, label_table_for
+from ..model.labels import label_table_for
 from ..model.progress import Progress, report
 from ..model.segmentation import RoiContours, segmentation_from_masks
 from . import _contour_kernels as K
@@ -110,7 +111,8 @@ def read_rois(ds, path, normal: Optional[np.ndarray] = None) -> Tuple[List[RoiCo
         if not contours:
             warnings.append(f"ROI {name!r} has no closed contour (empty or points only): skipped")
             continue
-        info = LabelInfo(n, name, colours.get(n, table[n].color))
+        info = dataclasses.replace(table[n], name=name, color=colours[n], color_given=True) \
+            if n in colours else dataclasses.replace(table[n], name=name)
         found.append((info, contours))
     if not found:
         return [], warnings

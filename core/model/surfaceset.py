@@ -26,7 +26,7 @@ import numpy as np
 from . import _surfaceset_kernels as K
 from .errors import AnatomeshError
 from .mesh import Mesh
-from .labels import LabelInfo
+from .labels import LabelInfo, rgba
 
 
 @dataclass
@@ -109,7 +109,8 @@ class SurfaceSet:
         for k, m in enumerate(meshes):
             np.add(m.faces, offsets[k], out=faces[rows[k]:rows[k + 1]], casting="unsafe")
             labels[rows[k]:rows[k + 1], 0] = k + 1
-        table = {k + 1: LabelInfo(k + 1, m.name or f"surface {k + 1}", tuple(m.color))
+        table = {k + 1: LabelInfo(k + 1, m.name or f"surface {k + 1}", rgba(m.color)[:3],
+                                  m.meta.get("material", "other"), rgba(m.color)[3])
                  for k, m in enumerate(meshes)}
         return cls(np.concatenate([m.vertices for m in meshes] or [np.zeros((0, 3))]),
                    faces, labels, None, affine, space, table,
@@ -190,8 +191,9 @@ class SurfaceSet:
             info = self.labels.get(value) or LabelInfo(value, f"label {value}")
             out.append(Mesh(self.vertices[ids], faces, name=info.name,
                             value=self.shell_values.get(value, value),
-                            color=tuple(info.color), space=self.space,
-                            meta={"vertex_ids": ids, "copies": int(ukeys.size)}))
+                            color=info.mesh_color(), space=self.space,
+                            meta={"vertex_ids": ids, "copies": int(ukeys.size),
+                                  "material": info.material}))
         return out
 
     def _grouped_faces(self, index: np.ndarray, groups: int):

@@ -53,9 +53,9 @@ def test_blend_holds_the_scene_the_ui_builds(made, addon):
         assert table[str(o["anatomesh_value"])] == s["name"] == o["anatomesh_name"]
         assert (len(o.data.vertices), len(o.data.polygons)) == (s["vertices"], s["faces"])
         assert o["anatomesh_space"] == "RAS" and o["anatomesh_units"] == "mm"
-        bsdf = next(n for n in o.data.materials[0].node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+        tissue = o.data.materials[0].node_tree.nodes["Anatomesh Tissue"]  # its class's shared group
         linear = tuple(srgb_to_linear(s["color"][:3]))  # label colours are sRGB; Blender holds linear
-        assert tuple(bsdf.inputs["Base Color"].default_value)[:3] == pytest.approx(linear, abs=1e-6)
+        assert tuple(tissue.inputs["Base Color"].default_value)[:3] == pytest.approx(linear, abs=1e-6)
         assert tuple(o.color)[:3] == pytest.approx(linear, abs=1e-6)
     # the lung is drawn see-through, the others opaque
     assert objs["lung_lower_lobe_left"]["anatomesh_alpha"] < 0.5 <= objs["liver"]["anatomesh_alpha"]

@@ -81,6 +81,7 @@ def test_thicken_gives_the_cli_surfaces(addon, empty_scene, tmp_path, bridge):
 def test_hollow_saves_the_cli_volume(addon, empty_scene, tmp_path, bridge):
     coll = _extract(empty_scene, "liver")
     liver = coll.objects["liver"]
+    materials = [m.name for m in liver.data.materials]  # its tissue, and its cut faces' material
     select_only(liver)
     assert bpy.ops.anatomesh.print_hollow(wall=2.0) == {"FINISHED"}
     (entry,) = json.loads(liver["anatomesh_fixes"])
@@ -92,7 +93,7 @@ def test_hollow_saves_the_cli_volume(addon, empty_scene, tmp_path, bridge):
     assert signed_volume(v, f) == pytest.approx(entry["volume_after_mm3"], rel=1e-3)
     t = topology(v, f)
     assert t.closed and t.manifold
-    assert liver.name == "liver" and len(liver.data.materials) == 1
+    assert liver.name == "liver" and [m.name for m in liver.data.materials] == materials
 
 
 def test_clearance_and_connectors_on_touching_vertebrae(addon, empty_scene, tmp_path, bridge):

@@ -65,3 +65,22 @@ def test_export_web_writes_the_page_with_colours(organs, tmp_path):
     assert scene["models"][0]["structures"][0]["volume_mm3"] > 30000  # 4/3 π 20³ ≈ 33510 mm³
     with pytest.raises(RuntimeError, match="already exist"):
         bpy.ops.anatomesh.export_web(directory=str(tmp_path), collection=coll.name)
+
+
+def test_export_web_lists_saved_views_and_keeps_each_opacity(organs, tmp_path):
+    coll, tumour, vessel, far = organs
+    vessel["anatomesh_alpha"] = 0.4
+    views = tmp_path / "views.toml"
+    views.write_text('"vessel alone" = "hide=spleen,tumour&view=left"\n')
+    assert bpy.ops.anatomesh.export_web(directory=str(tmp_path), collection=coll.name,
+                                        views=str(views)) == {"FINISHED"}
+    text = (tmp_path / "phantom_web" / "scene.js").read_text()
+    scene = json.loads(text[text.index("{"):text.rindex("}") + 1])
+    assert scene["views"] == [{"name": "vessel alone", "fragment": "hide=spleen,tumour&view=left"}]
+    s = {x["name"]: x for x in scene["models"][0]["structures"]}
+    assert s["portal_vein"]["opacity"] == 0.4 and "opacity" not in s["tumour"]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('a = "view=front"\n')
+    with pytest.raises(RuntimeError, match="bad.toml"):
+        bpy.ops.anatomesh.export_web(directory=str(tmp_path / "x"), collection=coll.name, views=str(bad))
+    assert not (tmp_path / "x").exists()

@@ -34,7 +34,7 @@ def test_61_label_page_is_at_most_2_mb_and_shows_progressively(tmp_path, record_
     with browser() as b:
         page = Page(b, folder)
         api = page.js("({first: anatomesh.firstFrameMs, levels: anatomesh.levels})")
-        assert page.errors() == [] and len(api["levels"]) == 2
+        assert page.errors() == [] and [lv["level"] for lv in api["levels"]] in ([0, 1], [1])
         assert all(u.startswith(folder.as_uri()) for u in page.requests)
         SHOTS.mkdir(parents=True, exist_ok=True)
         page.page.set_viewport_size({"width": 1100, "height": 620})

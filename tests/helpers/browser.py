@@ -117,3 +117,11 @@ def hue_saturation(rgb):
     h = np.where(mx == r, (g - b) / d % 6, np.where(mx == g, (b - r) / d + 2, (r - g) / d + 4)) * 60.0
     s = np.where(mx > 0, (mx - mn) / np.maximum(mx, 1e-9), 0.0)
     return np.where(mx > mn, h, 0.0), s
+
+
+def scene_of(folder: Path) -> dict:
+    """The scene record (scene.js) of the page written into ``folder``."""
+    import json
+
+    text = (Path(folder) / "scene.js").read_text()
+    return json.loads(text[text.index("{"):text.rindex("}") + 1])

@@ -1,10 +1,14 @@
 // The page's model data: each level of detail is one script (data/lodK.js) that hands the viewer
 // a base64 text; decoded, inflated (zlib) and cut into meshoptimizer-encoded buffers
-// (Kapoulkine, meshoptimizer: vertex and index codecs) as scene.js's records say.
+// (Kapoulkine, meshoptimizer: vertex and index codecs) as scene.js's records say. Inflating is
+// the browser's own (asynchronous) or fflate's (as three.js bundles it; synchronous, so the
+// finest level can be drawn in the task its script runs in, before the page's load event).
 //
 // A record per geometry and level: {v: vertices, t: triangles, p: [offset, bytes] of the
 // positions (uint16 x, y, z, 0 per vertex, quantised), i: [offset, bytes] of the triangle
 // indices, c: [offset, bytes] of the sRGB colours (uint8 r, g, b, 255 per vertex) or absent}.
+
+import { unzlibSync } from 'three/addons/libs/fflate.module.js';
 
 /** base64 text → bytes. */
 export function base64ToBytes(text) {
@@ -14,10 +18,15 @@ export function base64ToBytes(text) {
   return out;
 }
 
-/** zlib-compressed bytes → bytes (the browser's own DecompressionStream, no library). */
+/** zlib-compressed bytes (RFC 1950/1951) → bytes, by the browser's DecompressionStream. */
 export async function inflate(bytes) {
   const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream('deflate'));
   return new Uint8Array(await new Response(stream).arrayBuffer());
+}
+
+/** The same, now (fflate). */
+export function inflateNow(bytes) {
+  return unzlibSync(bytes);
 }
 
 /** Quantised positions (uint16, 4 per vertex) → Float32Array (3 per vertex) in mm:
@@ -69,10 +78,9 @@ export function decodeGeometry(blob, rec, decoder, quant) {
   };
 }
 
-/** Every geometry stored in level `level` of the scene, decoded: Map id → decodeGeometry(). */
-export async function decodeLevel(scene, level, text, decoder) {
-  await decoder.ready;
-  const blob = await inflate(base64ToBytes(text));
+/** Every geometry stored in level `level` of the scene, decoded from the level's inflated bytes
+ *  `blob`: Map id → decodeGeometry(). `decoder` must be ready (await decoder.ready once). */
+export function decodeLevel(scene, level, blob, decoder) {
   const out = new Map();
   for (const [id, rec] of Object.entries(scene.levels[level].geometries)) {
     out.set(id, decodeGeometry(blob, rec, decoder, scene.quantization));

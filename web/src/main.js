@@ -1,36 +1,55 @@
-// The page: reads scene.js (window.ANATOMESH_SCENE), loads the levels of detail coarse to fine
-// (each data/lodK.js calls window.anatomeshLevel), and wires the side panel to the 3D view.
+// The page: reads scene.js (window.ANATOMESH_SCENE), shows the levels of detail coarse to fine
+// (each data/lodK.js calls window.anatomeshLevel) and wires the side panel to the 3D view.
 // Works from file:// (classic scripts only: no fetch, no modules) and from any static server.
+//
+// The coarsest level is a script of index.html; the finer ones are requested as the page starts,
+// so the page's load event waits for them. A coarser level is inflated by the browser
+// (asynchronously) and drawn unless a finer one came first; the finest is decoded and drawn in
+// the task its script runs in, so the load event comes after the full detail is drawn: a plain
+// screenshot (taken at the load event) shows it.
 import { MeshoptDecoder } from 'meshoptimizer/decoder';
-import { decodeLevel } from './data.js';
+import { base64ToBytes, decodeLevel, inflate, inflateNow } from './data.js';
+import { wireMeasure } from './measure-panel.js';
 import { buildTree, cssColor, groupBySystem } from './tree.js';
+import { wireUrlState } from './url-sync.js';
 import { volumeText } from './view-math.js';
 import { Viewer } from './viewer.js';
 
 const $ = (id) => document.getElementById(id);
-const pending = new Map();   // level → resolve(text) of a level script requested
-const arrived = new Map();   // level → text of a level script that came first (index.html's)
-/** What tests (and curious users, from the console) can read: timings and the view. */
-const api = { firstFrameMs: null, levels: [], errors: [] };
+const texts = new Map();     // level → text of a level script arrived and not yet shown
+/** What tests (and curious users, from the console) can read: timings, readiness (`done`: the
+ *  full detail is drawn; also <html data-anatomesh="full">), the viewer, the URL state (`url`)
+ *  and the measuring tool (`measure`). */
+const api = { firstFrameMs: null, levels: [], errors: [], warnings: [], done: false };
 window.anatomesh = api;
+let decoderReady = false;
+let pumping = false;
+let onFirstLevel = () => {};
+MeshoptDecoder.ready.then(() => { decoderReady = true; if (!showFinestNow()) pump(); });
 window.anatomeshLevel = (level, text) => {
-  const resolve = pending.get(level);
-  if (resolve) resolve(text);
-  else arrived.set(level, text);
+  texts.set(level, text);
+  if (!showFinestNow()) pump();
 };
 
-function loadLevelScript(level, file) {
-  if (arrived.has(level)) return Promise.resolve(arrived.get(level));
-  return new Promise((resolve, reject) => {
-    pending.set(level, resolve);
-    const s = document.createElement('script');
-    s.src = file;
-    s.onerror = () => reject(new Error(`cannot load ${file}: keep the page's folder together`));
-    document.head.append(s);
-  });
+/** A level script that did not load (its onerror). */
+window.anatomeshMissing = (script) => {
+  fail(new Error(`cannot load ${script.getAttribute('src')}: keep the page's folder together`));
+};
+
+function requestLevelScript(file) {
+  const s = document.createElement('script');
+  s.src = file;
+  s.onerror = () => window.anatomeshMissing(s);
+  document.head.append(s);
 }
 
 function setStatus(text) { $('status').textContent = text; }
+
+function fail(err) {
+  api.errors.push(String(err.message || err));
+  setStatus(String(err.message || err));
+  console.error(err);
+}
 
 function showInfo(s, viewer) {
   if (!s) { $('info').hidden = true; return; }
@@ -52,14 +71,39 @@ function updateScale(viewer) {
   $('scale-label').textContent = bar.label;
 }
 
-function wireModel(viewer, m) {
+/** The tooltip follows what is shown: it names what is under the pointer (or the structure
+ *  clicked) now, so a structure hidden or clipped away loses its tooltip. */
+function tooltip(viewer) {
+  let pointer = null;
+  let pinned = null;
+  let timer = null;
+  const refresh = () => {
+    const under = pointer && viewer.pick(pointer.x, pointer.y);
+    const held = pinned && viewer.pick(pinned.x, pinned.y);
+    showInfo((under || held || {}).s || null, viewer);
+  };
+  const canvas = viewer.renderer.domElement;
+  canvas.addEventListener('pointermove', (e) => {
+    pointer = { x: e.offsetX, y: e.offsetY };
+    clearTimeout(timer);
+    timer = setTimeout(refresh, 60);
+  });
+  canvas.addEventListener('pointerleave', () => { pointer = null; refresh(); });
+  canvas.addEventListener('click', (e) => {
+    pinned = viewer.pick(e.offsetX, e.offsetY) ? { x: e.offsetX, y: e.offsetY } : null;
+    refresh();
+  });
+  return { refresh, hover: (s) => showInfo(s, viewer) };
+}
+
+function wireModel(viewer, m, on) {
   viewer.setModel(m);
   const model = viewer.model;
   const tree = buildTree(document, $('tree'), model.structures,
     groupBySystem(model.structures, viewer.data.systems), viewer.items, {
-      visible: (i, on) => { viewer.items[i].visible = on; viewer.refreshMaterials(); },
-      opacity: (i, a) => { viewer.items[i].opacity = a; viewer.refreshMaterials(); },
-      hover: (i) => showInfo(i == null ? null : model.structures[i], viewer),
+      visible: (i, v) => { viewer.items[i].visible = v; on.change(); },
+      opacity: (i, a) => { viewer.items[i].opacity = a; on.change(); },
+      hover: (i) => on.hover(i == null || !viewer.items[i].front.visible ? null : model.structures[i]),
     });
   const d = model.distance;
   $('distance').hidden = !d;
@@ -76,16 +120,10 @@ function wireModel(viewer, m) {
   return tree;
 }
 
-function wirePanel(viewer) {
+function wirePanel(viewer, on) {
   const scene = viewer.data;
   $('title').textContent = scene.title;
   document.title = `${scene.title} — Anatomesh`;
-  if (scene.models.length > 1) {
-    $('model').hidden = false;
-    $('model').replaceChildren(...scene.models.map((m, k) => new Option(m.name, k)));
-    $('model').addEventListener('change', () => wireModel(viewer, +$('model').value));
-  }
-  $('reset').addEventListener('click', () => viewer.resetView());
   $('oriented').addEventListener('change', () => {
     viewer.uniforms.uOriented.value = $('oriented').checked ? 1 : 0;
     viewer.requestRender();
@@ -95,34 +133,76 @@ function wirePanel(viewer) {
     viewer.refreshMaterials();
   });
   const clip = () => {
-    const axis = $('clip-axis').value;
-    viewer.clipping = axis ? { axis, fraction: +$('clip-at').value, flip: $('clip-flip').checked } : null;
-    viewer.refreshMaterials();
+    const plane = $('clip-axis').value;
+    viewer.clipping = plane ? { plane, fraction: +$('clip-at').value, flip: $('clip-flip').checked } : null;
+    on.change();
   };
   for (const id of ['clip-axis', 'clip-at', 'clip-flip']) $(id).addEventListener('input', clip);
-  const canvas = viewer.renderer.domElement;
-  let timer = null;
-  let pinned = null;
-  canvas.addEventListener('pointermove', (e) => {
-    clearTimeout(timer);
-    timer = setTimeout(() => showInfo(viewer.pick(e.offsetX, e.offsetY) || pinned, viewer), 60);
-  });
-  canvas.addEventListener('click', (e) => {
-    pinned = viewer.pick(e.offsetX, e.offsetY);
-    showInfo(pinned, viewer);
-  });
 }
 
-async function start() {
+/** Show the finest level arrived so far (inflated by the browser, asynchronously), until none
+ *  is left; the finest level of the page is shown as its script runs (window.anatomeshLevel). */
+async function pump() {
+  const viewer = api.viewer;
+  if (pumping || !viewer || !decoderReady) return;
+  pumping = true;
+  try {
+    while (texts.size) {
+      const k = Math.max(...texts.keys());
+      const text = texts.get(k);
+      texts.clear();
+      if (k <= viewer.level) continue;
+      performance.mark(`anatomesh:lod${k}-loaded`);
+      const blob = await inflate(base64ToBytes(text));
+      if (k > viewer.level) showLevel(k, blob);
+    }
+  } catch (err) { fail(err); }
+  pumping = false;
+}
+
+/** The full detail, if its script has run: decoded and drawn now, in this task (coarser levels
+ *  waiting are dropped). Returns whether it was. */
+function showFinestNow() {
+  const viewer = api.viewer;
+  const last = viewer ? viewer.data.levels.length - 1 : -1;
+  if (!decoderReady || !texts.has(last)) return false;
+  const text = texts.get(last);
+  texts.clear();
+  performance.mark(`anatomesh:lod${last}-loaded`);
+  try { showLevel(last, inflateNow(base64ToBytes(text))); } catch (err) { fail(err); }
+  return true;
+}
+
+/** Decode level `k` from its inflated bytes and draw it now. */
+function showLevel(k, blob) {
+  const viewer = api.viewer;
+  const scene = viewer.data;
+  performance.mark(`anatomesh:lod${k}-inflated`);
+  viewer.addLevel(k, decodeLevel(scene, k, blob, MeshoptDecoder));
+  performance.mark(`anatomesh:lod${k}-decoded`);
+  const first = api.levels.length === 0;
+  if (first) onFirstLevel();
+  viewer.renderNow();
+  performance.mark(`anatomesh:lod${k}-shown`);
+  const level = scene.levels[k];
+  api.levels.push({ level: k, triangles: level.triangles, bytes: level.bytes, ms: performance.now() });
+  if (first) requestAnimationFrame(() => { api.firstFrameMs = performance.now(); });
+  const finest = k === scene.levels.length - 1;
+  setStatus(`${finest ? 'full detail' : 'coarse preview'}: ${level.triangles.toLocaleString('en')} triangles`
+    + (finest ? '' : ', loading finer…'));
+  if (finest) {
+    api.measure.refresh();  // distances to the nearest structure over the full-detail triangles
+    api.done = true;
+    document.documentElement.dataset.anatomesh = 'full';
+  }
+}
+
+function start() {
   performance.mark('anatomesh:start');
   const scene = window.ANATOMESH_SCENE;
   if (!scene) { setStatus('scene.js is missing: keep the page\'s folder together'); return; }
   if (scene.format !== 'anatomesh-web/1') { setStatus(`unknown scene format ${scene.format}`); return; }
-  let firstFrame = null;
-  const viewer = new Viewer($('view'), scene, () => {
-    updateScale(viewer);
-    if (firstFrame) { firstFrame(); firstFrame = null; }
-  });
+  const viewer = new Viewer($('view'), scene, () => updateScale(viewer));
   api.viewer = viewer;
   api.screenBox = (name) => viewer.screenBox(name);
   api.pixels = () => {  // the canvas's pixels as base64 RGBA, rows bottom up (for tests)
@@ -131,32 +211,31 @@ async function start() {
     for (let i = 0; i < rgba.length; i += 0x8000) bin += String.fromCharCode(...rgba.subarray(i, i + 0x8000));
     return { width, height, data: btoa(bin) };
   };
-  wirePanel(viewer);
-  wireModel(viewer, 0);
-  for (const [k, level] of scene.levels.entries()) {
-    const text = await loadLevelScript(k, level.file);
-    performance.mark(`anatomesh:lod${k}-loaded`);
-    const decoded = await decodeLevel(scene, k, text, MeshoptDecoder);
-    performance.mark(`anatomesh:lod${k}-decoded`);
-    viewer.addLevel(k, decoded);
-    performance.mark(`anatomesh:lod${k}-shown`);
-    if (k === 0) {
-      viewer.resetView();
-      await new Promise((resolve) => { firstFrame = resolve; });
-      api.firstFrameMs = performance.now();
-    }
-    api.levels.push({ triangles: level.triangles, bytes: level.bytes, ms: performance.now() });
-    const finest = k === scene.levels.length - 1;
-    setStatus(`${finest ? 'full detail' : 'coarse preview'}: ${level.triangles.toLocaleString('en')} triangles`
-      + (finest ? '' : ', loading finer…'));
+  const tip = tooltip(viewer);
+  let url = null;
+  const on = {
+    change: () => { viewer.refreshMaterials(); tip.refresh(); if (url) url.changed(); },
+    hover: (s) => tip.hover(s),
+  };
+  wirePanel(viewer, on);
+  let tree = wireModel(viewer, 0, on);
+  const measure = wireMeasure(viewer, () => url && url.changed());
+  url = wireUrlState(viewer, { sync: () => tree.sync(), measure, refresh: () => on.change() });
+  api.url = url;
+  api.measure = measure;
+  if (scene.models.length > 1) {
+    $('model').hidden = false;
+    $('model').replaceChildren(...scene.models.map((m, k) => new Option(m.name, k)));
+    $('model').addEventListener('change', () => { tree = wireModel(viewer, +$('model').value, on); url.apply(); });
   }
-  api.done = true;
+  $('reset').addEventListener('click', () => url.reset());
+  onFirstLevel = () => url.apply();  // the view in the URL, once there is something to see
+  for (const level of scene.levels.slice(1)) requestLevelScript(level.file);  // before the load event
+  if (!showFinestNow()) pump();  // (a page of one level: drawn now)
 }
 
 window.addEventListener('error', (e) => api.errors.push(String(e.message)));
 // after the parser ran index.html's scripts, the coarsest level's included
-document.addEventListener('DOMContentLoaded', () => start().catch((err) => {
-  api.errors.push(String(err.message || err));
-  setStatus(String(err.message || err));
-  console.error(err);
-}));
+document.addEventListener('DOMContentLoaded', () => {
+  try { start(); } catch (err) { fail(err); }
+});

@@ -1,11 +1,20 @@
 // The 3D view: three.js scene, camera, lights, the structures' meshes, progressive levels of
-// detail, transparency, clipping, picking, scale bar. The page's panel is wired in main.js.
+// detail, transparency, clipping with section caps, picking, markers, scale bar. The page's
+// panel is wired in main.js.
+//
+// Shared interfaces: neighbouring structures own the same triangles with opposite orientation.
+// Seen from either side only one of the two faces the viewer (back faces are culled), opaque
+// structures have no back faces drawn (a cut is closed by its cap, caps.js), and see-through
+// structures are pushed back by a polygon offset, so where one coincides with an opaque
+// neighbour the opaque face wins every pixel: no view, opacity or cut shows z-fighting.
 import {
   BackSide, BufferAttribute, BufferGeometry, Color, DirectionalLight, FrontSide, Group,
-  HemisphereLight, Mesh, MeshStandardMaterial, OrthographicCamera, Plane, Raycaster, Scene,
-  SRGBColorSpace, Vector2, Vector3, WebGLRenderer,
+  HemisphereLight, Line, LineBasicMaterial, Mesh, MeshStandardMaterial, OrthographicCamera, Plane,
+  Points, PointsMaterial, Raycaster, Scene, SRGBColorSpace, Vector2, Vector3, WebGLRenderer,
 } from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { Cap } from './caps.js';
+import { CLIP_AXES, VIEWS } from './url-state.js';
 import { choosePick, clipPlane, drawOrder, scaleBar } from './view-math.js';
 
 /** Oriented transparency in the fragment shader (formula: view-math.js orientedAlpha). */
@@ -39,7 +48,7 @@ export class Viewer {
   constructor(canvas, scene, onChange = () => {}) {
     this.data = scene;
     this.onChange = onChange;
-    this.renderer = new WebGLRenderer({ canvas, antialias: true });
+    this.renderer = new WebGLRenderer({ canvas, antialias: true, stencil: true });
     this.renderer.setPixelRatio(Math.min(2, globalThis.devicePixelRatio || 1));
     this.renderer.localClippingEnabled = true;
     this.renderer.setClearColor(new Color(0x1d2026));
@@ -55,19 +64,19 @@ export class Viewer {
     this.controls.addEventListener('change', () => this.requestRender());
     this.uniforms = { uOriented: { value: 0 }, uOrientedExponent: { value: 0.7 } };
     this.plane = new Plane(new Vector3(0, 0, -1), 0);
-    this.clipping = null;           // {axis, fraction, flip} or null
+    this.clipping = null;           // {plane: 'axial'|'coronal'|'sagittal', fraction, flip} or null
     this.showDistance = false;
-    this.level = -1;                // the finest level of detail arrived so far
+    this.level = -1;                // the finest level of detail shown so far
     this.geometries = new Map();    // geometry id → BufferGeometry, of that level
     this.items = [];                // per structure of the current model
     this.frameQueued = false;
-    this.firstFrame = null;         // resolve function until the first picture is drawn
+    this.markers = this.makeMarkers();
     new ResizeObserver(() => this.resize()).observe(canvas);
   }
 
   /** Show model `m` of the scene (structures share geometries by id). */
   setModel(m) {
-    for (const it of this.items) this.root.remove(it.front, it.back);
+    for (const it of this.items) { this.root.remove(it.front, it.back); it.cap.remove(); }
     this.model = this.data.models[m];
     this.items = this.model.structures.map((s) => this.makeItem(s));
     this.showDistance = this.showDistance && !!this.model.distance;
@@ -77,7 +86,8 @@ export class Viewer {
   makeItem(s) {
     const color = new Color().setRGB(s.color[0], s.color[1], s.color[2], SRGBColorSpace);
     const make = (side) => {
-      const mat = new MeshStandardMaterial({ color, roughness: 0.55, metalness: 0, side });
+      const mat = new MeshStandardMaterial({ color, roughness: 0.55, metalness: 0, side,
+        polygonOffsetFactor: 2, polygonOffsetUnits: 8 });
       addOrientedAlpha(mat, this.uniforms);
       const mesh = new Mesh(this.geometries.get(s.geometry[this.level]) || new BufferGeometry(), mat);
       mesh.userData.structure = s;
@@ -85,7 +95,7 @@ export class Viewer {
       return mesh;
     };
     return { s, color, visible: s.visible !== false, opacity: s.opacity ?? 1,
-      front: make(FrontSide), back: make(BackSide) };
+      front: make(FrontSide), back: make(BackSide), cap: new Cap(this.root, color, this.plane) };
   }
 
   /** Level `k` arrived: `decoded` maps geometry id → arrays (data.js); its geometries replace
@@ -110,13 +120,35 @@ export class Viewer {
   /** Front view of everything (patient facing the viewer, head up), whole scene in the frame. */
   resetView() {
     const b = this.bounds();
-    const c = b.min.map((lo, k) => (lo + b.max[k]) / 2);
-    const size = Math.max(...b.max.map((hi, k) => hi - b.min[k]));
     this.fit = { w: b.max[0] - b.min[0], h: b.max[1] - b.min[1] };  // the front view's extent
-    this.controls.target.set(...c);
-    this.camera.position.set(c[0], c[1], c[2] + 2 * size);
-    this.camera.up.set(0, 1, 0);
-    this.camera.zoom = 1;
+    this.setCamera({ target: b.min.map((lo, k) => (lo + b.max[k]) / 2), ...VIEWS.anterior, zoom: 1 });
+  }
+
+  /** A named view (url-state.js VIEWS) of everything, centred, zoom 1. */
+  setView(name) {
+    const b = this.bounds();
+    this.setCamera({ target: b.min.map((lo, k) => (lo + b.max[k]) / 2), ...VIEWS[name], zoom: 1 });
+  }
+
+  /** The camera as {target [3] mm, dir [3] from the target to the eye, up [3], zoom}. */
+  getCamera() {
+    const t = this.controls.target;
+    const d = this.camera.position.clone().sub(t).divideScalar(this.eyeDistance || 1);
+    return { target: t.toArray(), dir: d.toArray(), up: this.camera.up.toArray(), zoom: this.camera.zoom };
+  }
+
+  /** Set the camera from getCamera()'s form. The eye stays two model sizes from the target,
+   *  depth range tight around the model (fine depth resolution). */
+  setCamera({ target, dir, up, zoom }) {
+    const b = this.bounds();
+    const diag = Math.hypot(...b.max.map((hi, k) => hi - b.min[k])) || 1;
+    this.eyeDistance = 2 * diag;
+    Object.assign(this.camera, { near: diag * 0.01, far: 4 * diag, zoom });
+    this.camera.up.set(...up).normalize();
+    this.controls._quat.setFromUnitVectors(this.camera.up, new Vector3(0, 1, 0));  // the orbit's pole
+    this.controls._quatInverse.copy(this.controls._quat).invert();
+    this.controls.target.set(...target);
+    this.camera.position.set(...dir).multiplyScalar(this.eyeDistance).add(this.controls.target);
     this.resize();
     this.controls.update();
   }
@@ -136,12 +168,14 @@ export class Viewer {
   /** Materials after a change of visibility, opacity, clipping or colour mode. */
   refreshMaterials() {
     const planes = this.clipping ? [this.plane] : [];
+    let axis = 0;
     if (this.clipping) {
-      const p = clipPlane(this.clipping.axis, this.clipping.fraction, this.bounds(), this.clipping.flip);
+      axis = { x: 0, y: 1, z: 2 }[CLIP_AXES[this.clipping.plane]];
+      const p = clipPlane(CLIP_AXES[this.clipping.plane], this.clipping.fraction, this.bounds(), this.clipping.flip);
       this.plane.normal.set(...p.normal);
       this.plane.constant = p.constant;
     }
-    for (const it of this.items) {
+    this.items.forEach((it, i) => {
       const seeThrough = it.opacity < 1;
       const colors = this.showDistance && !!it.front.geometry.getAttribute('color');
       for (const mesh of [it.front, it.back]) {
@@ -150,17 +184,21 @@ export class Viewer {
         m.vertexColors = colors;
         m.color.copy(colors ? new Color(1, 1, 1) : it.color);
         m.transparent = seeThrough;
+        m.polygonOffset = seeThrough;  // behind a coincident opaque face (shared interfaces)
         m.opacity = it.opacity;
         m.depthWrite = !seeThrough;
         m.clippingPlanes = planes;
       }
       it.front.visible = it.visible && it.opacity > 0;
-      it.back.visible = it.front.visible && (seeThrough || !!this.clipping);
-    }
+      it.back.visible = it.front.visible && seeThrough;
+      it.cut = it.cap.update(it.front.geometry, axis, -this.plane.constant * this.plane.normal.getComponent(axis),
+        { on: !!this.clipping && it.front.visible, opacity: it.opacity, order: 1 + 3 * i });
+    });
     this.requestRender();
   }
 
-  /** Draw order of the see-through structures for the current view (view-math.js drawOrder). */
+  /** Draw order of the see-through structures for the current view (view-math.js drawOrder);
+   *  a cut one draws its cap between its back and front faces. */
   sortTransparent() {
     for (const it of this.items) it.front.renderOrder = it.back.renderOrder = 0;  // opaque: by depth
     const see = this.items.filter((it) => it.front.visible && it.front.material.transparent);
@@ -171,19 +209,24 @@ export class Viewer {
       return { depth: s ? s.center.clone().sub(this.camera.position).dot(dir) : 0, radius: s ? s.radius : 0 };
     });
     drawOrder(items).forEach(({ index, side }, k) => {
-      see[index][side].renderOrder = k + 1;
+      const it = see[index];
+      it[side].renderOrder = 4 * k + 1;
+      if (side === 'back' && it.cut) it.cap.setOrder(4 * k + 2);
     });
+  }
+
+  /** Draw now (the picture is on screen when the browser next composites). */
+  renderNow() {
+    this.frameQueued = false;
+    this.sortTransparent();
+    this.renderer.render(this.scene, this.camera);
+    this.onChange();
   }
 
   requestRender() {
     if (this.frameQueued || this.level < 0) return;  // nothing to show before the first level
     this.frameQueued = true;
-    requestAnimationFrame(() => {
-      this.frameQueued = false;
-      this.sortTransparent();
-      this.renderer.render(this.scene, this.camera);
-      this.onChange();
-    });
+    requestAnimationFrame(() => { if (this.frameQueued) this.renderNow(); });
   }
 
   /** Pixels per millimetre on screen (orthographic: the same at every depth). */
@@ -194,25 +237,58 @@ export class Viewer {
 
   scaleBar(targetPx = 100) { return scaleBar(this.pxPerMm(), targetPx); }
 
-  /** The structure under the pixel (x, y) of the canvas (CSS px), or null. */
+  /** What is under the pixel (x, y) of the canvas (CSS px): {s (structure), index, point [3]
+   *  mm on its surface or on its cap}, or null. Hidden and clipped parts are never picked. */
   pick(x, y) {
     const canvas = this.renderer.domElement;
     const ndc = new Vector2(2 * x / canvas.clientWidth - 1, 1 - 2 * y / canvas.clientHeight);
     const ray = new Raycaster();
     ray.setFromCamera(ndc, this.camera);
-    const shown = this.items.filter((it) => it.front.visible).map((it) => it.front);
-    const hits = ray.intersectObjects(shown, false)
-      .filter((h) => !this.clipping || this.plane.distanceToPoint(h.point) >= 0)
-      .map((h) => ({ item: this.items.find((it) => it.front === h.object), distance: h.distance }))
-      .map((h) => ({ ...h, opacity: h.item.opacity }));
+    const shown = this.items.filter((it) => it.front.visible);
+    const meshes = shown.flatMap((it) => (it.cut ? [it.front, it.back] : [it.front]));
+    const entered = new Set();
+    const hits = [];
+    for (const h of ray.intersectObjects(meshes, false)) {
+      if (this.clipping && this.plane.distanceToPoint(h.point) < 0) continue;
+      const index = this.items.findIndex((it) => it.front === h.object || it.back === h.object);
+      const it = this.items[index];
+      if (h.object === it.front) entered.add(index);
+      else if (entered.has(index)) continue;  // the inside of a structure entered through its surface
+      else {  // the first face of a cut structure met from inside: the ray crossed its cap
+        entered.add(index);
+        h.point = ray.ray.intersectPlane(this.plane, new Vector3()) || h.point;
+        h.distance = h.point.clone().sub(ray.ray.origin).dot(ray.ray.direction);
+      }
+      hits.push({ item: it, index, distance: h.distance, opacity: it.opacity, point: h.point.toArray() });
+    }
+    hits.sort((a, b) => a.distance - b.distance);
     const hit = choosePick(hits);
-    return hit ? hit.item.s : null;
+    return hit ? { s: hit.item.s, index: hit.index, point: hit.point } : null;
+  }
+
+  /** Measured points ([[x, y, z] mm], up to two) shown as dots joined by a line, on top. */
+  setMarkers(points) {
+    const flat = new Float32Array(points.flat());
+    for (const obj of [this.markers.dots, this.markers.line]) {
+      obj.geometry.setAttribute('position', new BufferAttribute(flat, 3));
+      obj.geometry.computeBoundingSphere();
+    }
+    this.markers.dots.visible = points.length > 0;
+    this.markers.line.visible = points.length > 1;
+    this.requestRender();
+  }
+
+  makeMarkers() {
+    const top = { depthTest: false, depthWrite: false, transparent: true };
+    const dots = new Points(new BufferGeometry(), new PointsMaterial({ color: 0xffee00, size: 9, sizeAttenuation: false, ...top }));
+    const line = new Line(new BufferGeometry(), new LineBasicMaterial({ color: 0xffee00, ...top }));
+    for (const m of [dots, line]) { m.renderOrder = 1e6; m.visible = false; this.scene.add(m); }
+    return { dots, line };
   }
 
   /** The picture as drawn now (tests): {width, height, rgba: Uint8Array, rows bottom up}. */
   readPixels() {
-    this.sortTransparent();
-    this.renderer.render(this.scene, this.camera);
+    this.renderNow();
     const gl = this.renderer.getContext();
     const [w, h] = [gl.drawingBufferWidth, gl.drawingBufferHeight];
     const rgba = new Uint8Array(w * h * 4);

@@ -23,13 +23,16 @@ def test_stl_round_trip_and_header(tmp_path):
 
 def test_ply_binary_round_trip(tmp_path):
     m = _mesh("RAS")
+    m.color = (0.6, 0.3, 0.2)
     p = write_mesh(m, tmp_path / "liver.ply")
     raw = p.read_bytes()
     head, body = raw.split(b"end_header\n", 1)
     assert b"comment SPACE=RAS" in head and b"element face %d" % m.n_faces in head
-    vert = np.frombuffer(body[: m.n_vertices * 24], "<f4").reshape(-1, 6)
-    np.testing.assert_array_equal(vert[:, :3], m.vertices)
-    faces = np.frombuffer(body[m.n_vertices * 24:], dtype=[("n", "u1"), ("i", "<i4", 3)])
+    vertex = np.dtype([("p", "<f4", 3), ("n", "<f4", 3), ("c", "u1", 3)])  # the colour on every vertex
+    vert = np.frombuffer(body[: m.n_vertices * vertex.itemsize], vertex)
+    np.testing.assert_array_equal(vert["p"], m.vertices)
+    assert (vert["c"] == [153, 76, 51]).all()
+    faces = np.frombuffer(body[m.n_vertices * vertex.itemsize:], dtype=[("n", "u1"), ("i", "<i4", 3)])
     assert (faces["n"] == 3).all()
     np.testing.assert_array_equal(faces["i"], m.faces)
 
