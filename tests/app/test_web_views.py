@@ -314,6 +314,9 @@ def test_the_tooltip_follows_visibility_and_clipping(page):
     page.page.check(f'input[data-structure="{LIVER}"]')
     assert info().startswith(LIVER)  # the click's place shows it again
     _go(page, "clip=sagittal:0.9:flip")  # keeps only the patient's far left: the liver is cut away
+    page.page.wait_for_function(  # within a moment of the cut (the page redraws, then re-picks)
+        f"(e => e.hidden || !e.textContent.startsWith('{LIVER}'))(document.getElementById('info'))",
+        timeout=5000)
     assert not info().startswith(LIVER)
 
 

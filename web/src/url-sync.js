@@ -45,10 +45,11 @@ export function wireUrlState(viewer, { sync, measure, refresh }) {
 
   /** Show the view of the URL's fragment (unknown names and bad values: a warning, the rest
    *  still applied). */
-  function apply() {
+  function apply(hash = location.hash) {
+    clearTimeout(timer);  // a write still pending from an earlier change must not undo this view
     let st;
     try {
-      st = parseState(location.hash);
+      st = parseState(hash);
     } catch (err) {
       warn(err.message);
       return;
@@ -90,7 +91,7 @@ export function wireUrlState(viewer, { sync, measure, refresh }) {
     if (moving) { cameraSet = true; view = null; $('view-name').value = ''; }
     if (cameraSet) changed();
   });
-  window.addEventListener('hashchange', apply);
+  window.addEventListener('hashchange', (e) => apply(new URL(e.newURL).hash));
   $('view-name').addEventListener('change', () => {
     view = $('view-name').value || null;
     cameraSet = false;
