@@ -6,7 +6,7 @@ import shutil
 import pytest
 
 from conftest import REPO
-from helpers.browser import browser
+from helpers.browser import Page, browser
 
 WEB = REPO / "web"
 
@@ -28,3 +28,11 @@ def chromium():
     """One headless Chromium for a test module."""
     with browser() as b:
         yield b
+
+
+@pytest.fixture
+def page(chromium, sample_run):
+    """The page of the module's ``sample_run`` (result, page folder) open in the browser."""
+    p = Page(chromium, sample_run[1])
+    yield p
+    p.page.close()

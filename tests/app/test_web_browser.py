@@ -30,13 +30,6 @@ def sample_run(tmp_path_factory):
     return res, out / "web"
 
 
-@pytest.fixture
-def page(chromium, sample_run):
-    p = Page(chromium, sample_run[1])
-    yield p
-    p.page.close()
-
-
 def _liver_mask(page):
     """Pixels that change when the liver is hidden (its visible area), and the two pictures."""
     page.js("document.getElementById('show-distance').click()")  # plain colours

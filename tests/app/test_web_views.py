@@ -33,13 +33,6 @@ def sample_run(tmp_path_factory):
     return res, out / "web"
 
 
-@pytest.fixture
-def page(chromium, sample_run):
-    p = Page(chromium, sample_run[1])
-    yield p
-    p.page.close()
-
-
 def _go(page, fragment):
     """Set the URL's fragment as a user would and wait until the page has drawn it."""
     page.js("f => { location.hash = f; }", fragment)
