@@ -15,11 +15,12 @@ page decodes with the same release's JavaScript decoder):
 Identical byte strings are stored once: a record's id is a hash of its content, so the structures
 several models (resection variants) share cost nothing the second time. A level's records are
 concatenated and deflated (zlib): the codecs leave byte patterns that a general compressor still
-shrinks by a quarter, and browsers inflate natively (``DecompressionStream``).
+shrinks by a quarter. The deflated bytes travel as Z85 text (ZeroMQ RFC 32/Z85: 4 bytes in 5
+printable characters, none of them a quote or a backslash), a quarter more than the bytes where
+base64 costs a third.
 """
 from __future__ import annotations
 
-import base64
 import hashlib
 import zlib
 from dataclasses import dataclass, field
@@ -134,10 +135,26 @@ class LevelPack:
         return zlib.compress(b"".join(self.chunks), 9)
 
 
+#: Z85's alphabet (ZeroMQ RFC 32): digit values 0..84 in base 85
+Z85 = b"0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ.-:+=^!/*?&<>()[]{}@%$#"
+
+
+def z85(data: bytes) -> bytes:
+    """``data`` as Z85 text: zero bytes pad it to a multiple of 4, then each big-endian 32-bit
+    word becomes 5 base-85 digits, most significant first."""
+    words = np.frombuffer(data + bytes(-len(data) % 4), ">u4").astype(np.uint64)
+    digits = np.empty((len(words), 5), np.uint8)
+    for k in range(4, -1, -1):
+        digits[:, k] = words % 85
+        words //= 85
+    return np.frombuffer(Z85, np.uint8)[digits].tobytes()
+
+
 def level_script(level: int, deflated: bytes) -> bytes:
-    """The JavaScript file of one level: ``anatomeshLevel(k, "<base64>");`` (a classic script, so
-    pages opened from ``file://`` can load it; no request is made)."""
-    return b"anatomeshLevel(%d,\"" % level + base64.b64encode(deflated) + b"\");\n"
+    """The JavaScript file of one level: ``anatomeshLevel(k, "<Z85>", n);`` with n the bytes the
+    text carries before its padding (a classic script, so pages opened from ``file://`` can load
+    it; no request is made)."""
+    return b"anatomeshLevel(%d,\"%s\",%d);\n" % (level, z85(deflated), len(deflated))
 
 
 def encoded_level(meshes: List[Mesh], q: Quantization, pack: LevelPack) -> List[str]:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from anatomesh.app.web.page import WebModel, page_paths, write_page
-from anatomesh.app.web.pack import STEP_MM, LevelPack, display_vertices, encode_mesh, quantization_for
+from anatomesh.app.web.pack import STEP_MM, Z85, LevelPack, display_vertices, encode_mesh, quantization_for, z85
 from anatomesh.core.export.gltf import AXES
 from anatomesh.core.model.errors import AnatomeshError
 from anatomesh.core.model.mesh import Mesh
@@ -84,6 +84,24 @@ def test_identical_surfaces_are_stored_once():
     assert blob[rec["p"][0]:rec["p"][0] + rec["p"][1]] == encode_mesh(a, q)["parts"]["p"]
 
 
+#: RFC 1924's base-85 alphabet, which Python's base64.b85decode reads: the same arithmetic as Z85
+B85 = b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz!#$%&()*+-;<=>?@^_`{|}~"
+
+
+def z85_decoded(text: bytes) -> bytes:
+    """Z85 text → bytes, by the standard library's base-85 decoder."""
+    return base64.b85decode(text.translate(bytes.maketrans(Z85, B85)))
+
+
+def test_z85_is_zeromq_rfc_32():
+    assert z85(bytes([0x86, 0x4F, 0xD2, 0x6F, 0xB5, 0x59, 0xF7, 0x5B])) == b"HelloWorld"  # the RFC's example
+    data = np.random.default_rng(3).integers(0, 256, 4001, np.uint8).tobytes() + b"\xff" * 7
+    text = z85(data)
+    assert len(text) == 5 * 1002 and not set(text) - set(Z85) and b'"' not in text and b"\\" not in text
+    assert z85_decoded(text)[:len(data)] == data
+    assert z85(b"") == b""
+
+
 def _scene(folder):
     text = (folder / "scene.js").read_text()
     assert text.startswith("window.ANATOMESH_SCENE = ") and text.endswith(";\n")
@@ -117,8 +135,8 @@ def test_page_of_two_variants_stores_shared_structures_once(tmp_path):
     assert "<title>Variants &lt;A &amp; B&gt;</title>" in html and 'src="data/lod1.js"' in html
     assert not re.search(r"(src|href)=\"(https?:)?//", html)  # nothing from elsewhere
     js = (page / "data/lod0.js").read_bytes()
-    m = re.fullmatch(rb'anatomeshLevel\(1,"([A-Za-z0-9+/=]+)"\);\n', js)
-    assert m and len(zlib.decompress(base64.b64decode(m.group(1)))) == sum(
+    m = re.fullmatch(rb'anatomeshLevel\(1,"([^"\\]+)",(\d+)\);\n', js)
+    assert m and len(zlib.decompress(z85_decoded(m.group(1))[:int(m.group(2))])) == sum(
         sum(r[k][1] for k in "pic" if k in r) for r in sc["levels"][1]["geometries"].values())
 
 

@@ -3,12 +3,11 @@
 // Works from file:// (classic scripts only: no fetch, no modules) and from any static server.
 //
 // The coarsest level is a script of index.html; the finer ones are requested as the page starts,
-// so the page's load event waits for them. A coarser level is inflated by the browser
-// (asynchronously) and drawn unless a finer one came first; the finest is decoded and drawn in
-// the task its script runs in, so the load event comes after the full detail is drawn: a plain
-// screenshot (taken at the load event) shows it.
+// so the page's load event waits for them. Each level is decoded and drawn in the task its script
+// runs in (a coarser one arriving after a finer one is dropped), so the load event comes after
+// the full detail is drawn: a plain screenshot (taken at the load event) shows it.
 import { MeshoptDecoder } from 'meshoptimizer/decoder';
-import { base64ToBytes, decodeLevel, inflate, inflateNow } from './data.js';
+import { decodeLevel, inflate, z85ToBytes } from './data.js';
 import { wireMeasure } from './measure-panel.js';
 import { buildTree, cssColor, groupBySystem } from './tree.js';
 import { wireUrlState } from './url-sync.js';
@@ -16,19 +15,18 @@ import { volumeText } from './view-math.js';
 import { Viewer } from './viewer.js';
 
 const $ = (id) => document.getElementById(id);
-const texts = new Map();     // level → text of a level script arrived and not yet shown
+const texts = new Map();     // level → [Z85 text, bytes] of a level script arrived, not yet shown
 /** What tests (and curious users, from the console) can read: timings, readiness (`done`: the
  *  full detail is drawn; also <html data-anatomesh="full">), the viewer, the URL state (`url`)
  *  and the measuring tool (`measure`). */
 const api = { firstFrameMs: null, levels: [], errors: [], warnings: [], done: false };
 window.anatomesh = api;
 let decoderReady = false;
-let pumping = false;
 let onFirstLevel = () => {};
-MeshoptDecoder.ready.then(() => { decoderReady = true; if (!showFinestNow()) pump(); });
-window.anatomeshLevel = (level, text) => {
-  texts.set(level, text);
-  if (!showFinestNow()) pump();
+MeshoptDecoder.ready.then(() => { decoderReady = true; showArrived(); });
+window.anatomeshLevel = (level, text, bytes) => {
+  texts.set(level, [text, bytes]);
+  showArrived();
 };
 
 /** A level script that did not load (its onerror). */
@@ -42,6 +40,9 @@ function requestLevelScript(file) {
   s.onerror = () => window.anatomeshMissing(s);
   document.head.append(s);
 }
+
+/** 1234567 → "1,234,567". */
+function thousands(n) { return String(n).replace(/\B(?=(\d{3})+$)/g, ','); }
 
 function setStatus(text) { $('status').textContent = text; }
 
@@ -140,37 +141,16 @@ function wirePanel(viewer, on) {
   for (const id of ['clip-axis', 'clip-at', 'clip-flip']) $(id).addEventListener('input', clip);
 }
 
-/** Show the finest level arrived so far (inflated by the browser, asynchronously), until none
- *  is left; the finest level of the page is shown as its script runs (window.anatomeshLevel). */
-async function pump() {
+/** Draw the finest level arrived so far, now (once the viewer and the decoder are ready). */
+function showArrived() {
   const viewer = api.viewer;
-  if (pumping || !viewer || !decoderReady) return;
-  pumping = true;
-  try {
-    while (texts.size) {
-      const k = Math.max(...texts.keys());
-      const text = texts.get(k);
-      texts.clear();
-      if (k <= viewer.level) continue;
-      performance.mark(`anatomesh:lod${k}-loaded`);
-      const blob = await inflate(base64ToBytes(text));
-      if (k > viewer.level) showLevel(k, blob);
-    }
-  } catch (err) { fail(err); }
-  pumping = false;
-}
-
-/** The full detail, if its script has run: decoded and drawn now, in this task (coarser levels
- *  waiting are dropped). Returns whether it was. */
-function showFinestNow() {
-  const viewer = api.viewer;
-  const last = viewer ? viewer.data.levels.length - 1 : -1;
-  if (!decoderReady || !texts.has(last)) return false;
-  const text = texts.get(last);
+  if (!viewer || !decoderReady || !texts.size) return;
+  const k = Math.max(...texts.keys());
+  const [text, bytes] = texts.get(k);
   texts.clear();
-  performance.mark(`anatomesh:lod${last}-loaded`);
-  try { showLevel(last, inflateNow(base64ToBytes(text))); } catch (err) { fail(err); }
-  return true;
+  if (k <= viewer.level) return;
+  performance.mark(`anatomesh:lod${k}-loaded`);
+  try { showLevel(k, inflate(z85ToBytes(text, bytes))); } catch (err) { fail(err); }
 }
 
 /** Decode level `k` from its inflated bytes and draw it now. */
@@ -188,7 +168,7 @@ function showLevel(k, blob) {
   api.levels.push({ level: k, triangles: level.triangles, bytes: level.bytes, ms: performance.now() });
   if (first) requestAnimationFrame(() => { api.firstFrameMs = performance.now(); });
   const finest = k === scene.levels.length - 1;
-  setStatus(`${finest ? 'full detail' : 'coarse preview'}: ${level.triangles.toLocaleString('en')} triangles`
+  setStatus(`${finest ? 'full detail' : 'coarse preview'}: ${thousands(level.triangles)} triangles`
     + (finest ? '' : ', loading finer…'));
   if (finest) {
     api.measure.refresh();  // distances to the nearest structure over the full-detail triangles
@@ -231,7 +211,7 @@ function start() {
   $('reset').addEventListener('click', () => url.reset());
   onFirstLevel = () => url.apply();  // the view in the URL, once there is something to see
   for (const level of scene.levels.slice(1)) requestLevelScript(level.file);  // before the load event
-  if (!showFinestNow()) pump();  // (a page of one level: drawn now)
+  showArrived();  // the coarsest level, if the decoder is ready
 }
 
 window.addEventListener('error', (e) => api.errors.push(String(e.message)));

@@ -1,6 +1,12 @@
 // The structure tree of the side panel: structures grouped by body system (the system of each
 // name comes with the scene, from Anatomesh's label palette), each with visibility and opacity.
 
+/** a before b (< 0), after (> 0) or equal (0), by their lower-case characters' codes. */
+function byName(a, b) {
+  const [x, y] = [a.toLowerCase(), b.toLowerCase()];
+  return x < y ? -1 : Number(x > y);
+}
+
 /** Structures grouped by `system`, groups in `order` (unknown systems last, alphabetically),
  *  members by name: [{system, members: [index into structures]}]. */
 export function groupBySystem(structures, order = []) {
@@ -12,10 +18,10 @@ export function groupBySystem(structures, order = []) {
   });
   const rank = (k) => (order.includes(k) ? order.indexOf(k) : order.length);
   return [...groups.entries()]
-    .sort(([a], [b]) => rank(a) - rank(b) || a.localeCompare(b))
+    .sort(([a], [b]) => rank(a) - rank(b) || byName(a, b))
     .map(([system, members]) => ({
       system,
-      members: members.sort((a, b) => structures[a].name.localeCompare(structures[b].name)),
+      members: members.sort((a, b) => byName(structures[a].name, structures[b].name)),
     }));
 }
 

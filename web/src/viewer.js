@@ -4,13 +4,14 @@
 //
 // Shared interfaces: neighbouring structures own the same triangles with opposite orientation.
 // Seen from either side only one of the two faces the viewer (back faces are culled), opaque
-// structures have no back faces drawn (a cut is closed by its cap, caps.js), and see-through
-// structures are pushed back by a polygon offset, so where one coincides with an opaque
+// structures have no back faces drawn (a cut is closed by its cap, caps.js), see-through ones
+// draw their far side as a surface turned inside out (insideOut) and are pushed back by a
+// polygon offset, so where one coincides with an opaque
 // neighbour the opaque face wins every pixel: no view, opacity or cut shows z-fighting.
 import {
-  BackSide, BufferAttribute, BufferGeometry, Color, DirectionalLight, FrontSide, Group,
+  Box3, BufferAttribute, BufferGeometry, Color, DirectionalLight, Group,
   HemisphereLight, Line, LineBasicMaterial, Mesh, MeshStandardMaterial, OrthographicCamera, Plane,
-  Points, PointsMaterial, Raycaster, Scene, SRGBColorSpace, Vector2, Vector3, WebGLRenderer,
+  Points, PointsMaterial, Raycaster, Scene, Sphere, SRGBColorSpace, Vector2, Vector3, WebGLRenderer,
 } from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { Cap } from './caps.js';
@@ -33,14 +34,33 @@ function addOrientedAlpha(material, uniforms) {
   material.customProgramCacheKey = () => 'anatomesh-oriented';
 }
 
+/** The same surface seen from inside: positions (and colours) shared, each triangle reversed and
+ *  the normals negated. A see-through structure draws its far side with it, in the shader of its
+ *  near side: one shader fewer to compile than a second, back-face material. */
+function insideOut(g) {
+  const idx = g.index.array;
+  const reversed = new Uint32Array(idx.length);
+  for (let t = 0; t < idx.length; t += 3) {
+    reversed[t] = idx[t]; reversed[t + 1] = idx[t + 2]; reversed[t + 2] = idx[t + 1];
+  }
+  const out = new BufferGeometry();
+  for (const [name, attr] of Object.entries(g.attributes)) out.setAttribute(name, attr);
+  out.setAttribute('normal', new BufferAttribute(g.getAttribute('normal').array.map((x) => -x), 3));
+  out.setIndex(new BufferAttribute(reversed, 1));
+  out.boundingBox = g.boundingBox;
+  out.boundingSphere = g.boundingSphere;
+  return out;
+}
+
 function geometryOf(decoded) {
   const g = new BufferGeometry();
   g.setAttribute('position', new BufferAttribute(decoded.positions, 3));
   g.setIndex(new BufferAttribute(decoded.indices, 1));
+  g.setAttribute('normal', new BufferAttribute(decoded.normals, 3));
   if (decoded.colors) g.setAttribute('color', new BufferAttribute(decoded.colors, 3));
-  g.computeVertexNormals();
-  g.computeBoundingSphere();
-  g.computeBoundingBox();
+  const { min, max, radius } = decoded.bounds;
+  g.boundingBox = new Box3(new Vector3(...min), new Vector3(...max));
+  g.boundingSphere = new Sphere(g.boundingBox.getCenter(new Vector3()), radius);
   return g;
 }
 
@@ -71,12 +91,13 @@ export class Viewer {
     this.items = [];                // per structure of the current model
     this.frameQueued = false;
     this.markers = this.makeMarkers();
-    new ResizeObserver(() => this.resize()).observe(canvas);
+    this.resize();
+    new ResizeObserver(() => { if (this.sizeChanged()) this.resize(); }).observe(canvas);
   }
 
   /** Show model `m` of the scene (structures share geometries by id). */
   setModel(m) {
-    for (const it of this.items) { this.root.remove(it.front, it.back); it.cap.remove(); }
+    for (const it of this.items) { this.root.remove(it.front, it.back); if (it.cap) it.cap.remove(); }
     this.model = this.data.models[m];
     this.items = this.model.structures.map((s) => this.makeItem(s));
     this.showDistance = this.showDistance && !!this.model.distance;
@@ -85,8 +106,8 @@ export class Viewer {
 
   makeItem(s) {
     const color = new Color().setRGB(s.color[0], s.color[1], s.color[2], SRGBColorSpace);
-    const make = (side) => {
-      const mat = new MeshStandardMaterial({ color, roughness: 0.55, metalness: 0, side,
+    const make = () => {
+      const mat = new MeshStandardMaterial({ color, roughness: 0.55, metalness: 0,
         polygonOffsetFactor: 2, polygonOffsetUnits: 8 });
       addOrientedAlpha(mat, this.uniforms);
       const mesh = new Mesh(this.geometries.get(s.geometry[this.level]) || new BufferGeometry(), mat);
@@ -95,7 +116,7 @@ export class Viewer {
       return mesh;
     };
     return { s, color, visible: s.visible !== false, opacity: s.opacity ?? 1,
-      front: make(FrontSide), back: make(BackSide), cap: new Cap(this.root, color, this.plane) };
+      front: make(), back: make(), cap: null };  // back: insideOut, made when first seen; cap: at the first cut
   }
 
   /** Level `k` arrived: `decoded` maps geometry id → arrays (data.js); its geometries replace
@@ -106,7 +127,9 @@ export class Viewer {
     this.level = k;
     for (const it of this.items) {
       const g = this.geometries.get(it.s.geometry[k]);
-      if (g) it.front.geometry = it.back.geometry = g;
+      if (!g) continue;
+      if (it.back.geometry !== it.front.geometry) it.back.geometry.dispose();
+      it.front.geometry = it.back.geometry = g;
     }
     for (const g of old.values()) g.dispose();
     this.refreshMaterials();
@@ -153,11 +176,23 @@ export class Viewer {
     this.controls.update();
   }
 
-  resize() {
+  /** The canvas's size on the page (CSS px), [width, height], at least 1 × 1. */
+  canvasSize() {
     const canvas = this.renderer.domElement;
-    const w = canvas.clientWidth || 1;
-    const h = canvas.clientHeight || 1;
-    this.renderer.setSize(w, h, false);
+    return [canvas.clientWidth || 1, canvas.clientHeight || 1];
+  }
+
+  /** Whether the canvas's size differs from the drawing's (a new drawing buffer also clears it). */
+  sizeChanged() {
+    const [w, h] = this.canvasSize();
+    const drawn = this.renderer.getSize(new Vector2());
+    return drawn.x !== w || drawn.y !== h;
+  }
+
+  /** The drawing buffer and the camera's frustum to the canvas's size. */
+  resize() {
+    const [w, h] = this.canvasSize();
+    if (this.sizeChanged()) this.renderer.setSize(w, h, false);
     const fit = this.fit || { w: 200, h: 200 };
     const e = 0.56 * Math.max(fit.h, fit.w * h / w, 1);  // half height: all in view, 12 % margin
     Object.assign(this.camera, { left: -e * w / h, right: e * w / h, top: e, bottom: -e });
@@ -177,6 +212,9 @@ export class Viewer {
     }
     this.items.forEach((it, i) => {
       const seeThrough = it.opacity < 1;
+      const surface = it.front.geometry;
+      const backNeeded = seeThrough || !!this.clipping;  // drawn, or picked through a cut
+      if (backNeeded && it.back.geometry === surface && surface.index) it.back.geometry = insideOut(surface);
       const colors = this.showDistance && !!it.front.geometry.getAttribute('color');
       for (const mesh of [it.front, it.back]) {
         const m = mesh.material;
@@ -191,7 +229,8 @@ export class Viewer {
       }
       it.front.visible = it.visible && it.opacity > 0;
       it.back.visible = it.front.visible && seeThrough;
-      it.cut = it.cap.update(it.front.geometry, axis, -this.plane.constant * this.plane.normal.getComponent(axis),
+      if (this.clipping && !it.cap) it.cap = new Cap(this.root, it.color, this.plane);
+      it.cut = !!it.cap && it.cap.update(it.front.geometry, axis, -this.plane.constant * this.plane.normal.getComponent(axis),
         { on: !!this.clipping && it.front.visible, opacity: it.opacity, order: 1 + 3 * i });
     });
     this.requestRender();

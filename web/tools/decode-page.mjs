@@ -5,7 +5,7 @@
 import { readFileSync } from 'node:fs';
 import { join } from 'node:path';
 import { MeshoptDecoder } from 'meshoptimizer/decoder';
-import { base64ToBytes, decodeLevel, inflate } from '../src/data.js';
+import { decodeLevel, inflate, z85ToBytes } from '../src/data.js';
 
 const dir = process.argv[2];
 const sceneText = readFileSync(join(dir, 'scene.js'), 'utf8');
@@ -27,9 +27,9 @@ await MeshoptDecoder.ready;
 const out = [];
 for (const [k, level] of scene.levels.entries()) {
   const js = readFileSync(join(dir, level.file), 'utf8');
-  const m = /^anatomeshLevel\((\d+),"([^"]*)"\);\s*$/.exec(js);
+  const m = /^anatomeshLevel\((\d+),"([^"]*)",(\d+)\);\s*$/.exec(js);
   if (!m || +m[1] !== k) throw new Error(`${level.file}: not the script of level ${k}`);
-  const decoded = decodeLevel(scene, k, await inflate(base64ToBytes(m[2])), MeshoptDecoder);
+  const decoded = decodeLevel(scene, k, inflate(z85ToBytes(m[2], +m[3])), MeshoptDecoder);
   const geometries = {};
   for (const [id, g] of decoded) {
     const lo = [Infinity, Infinity, Infinity];
