@@ -8,15 +8,20 @@ Meshes ``example_seg_fast_force_split.nii.gz`` (61 labels, default smoothing) on
 * opens the page from ``file://`` in Debian's headless Chromium (Playwright, no download),
   best of N loads: the time from navigation start to the first picture (the coarse level drawn)
   and to the full detail shown. Target: first picture <= 1 s on this machine (2 cores, no GPU:
-  WebGL runs on SwiftShader).
+  WebGL runs on SwiftShader);
+* with ``--against DIR ...``: other pages of the same map (say, written by an earlier release)
+  loaded in turn with ours, load by load, so that both see the same machine: sizes, medians and
+  ratios side by side.
 
-Run: ``python benchmarks/bench_web.py [--runs N] [--out DIR]`` (needs ../shared/data).
+Run: ``python benchmarks/bench_web.py [--runs N] [--out DIR] [--against DIR ...]`` (needs
+../shared/data).
 """
 from __future__ import annotations
 
 import argparse
 import gzip
 import os
+import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -43,27 +48,48 @@ def surfaces():
     return smoothed, smoothed.shells()
 
 
-def first_pictures(folder: Path, runs: int):
+def first_pictures(folders, runs: int):
+    """{folder: [(first picture, full detail shown, load event) ms per load]}, the folders loaded
+    in turn, ``runs`` times each."""
     from playwright.sync_api import sync_playwright
 
-    out = []
+    out = {f: [] for f in folders}
     with sync_playwright() as p:
         b = p.chromium.launch(executable_path=os.environ.get("ANATOMESH_CHROMIUM", "/usr/bin/chromium"),
                               args=FLAGS)
         for _ in range(runs):
-            page = b.new_page(viewport={"width": 1100, "height": 700})
-            page.goto((folder / "index.html").as_uri())
-            page.wait_for_function("window.anatomesh && window.anatomesh.done === true", timeout=120000)
-            out.append(page.evaluate("[anatomesh.firstFrameMs, anatomesh.levels[anatomesh.levels.length - 1].ms]"))
-            page.close()
+            for folder in folders:
+                page = b.new_page(viewport={"width": 1100, "height": 700})
+                page.goto((Path(folder) / "index.html").as_uri())
+                page.wait_for_function("window.anatomesh && window.anatomesh.done === true", timeout=120000)
+                page.wait_for_load_state("load")
+                out[folder].append(page.evaluate(
+                    "[anatomesh.firstFrameMs, anatomesh.levels[anatomesh.levels.length - 1].ms,"
+                    " performance.getEntriesByType('navigation')[0].loadEventStart]"))
+                page.close()
         b.close()
     return out
+
+
+def compare(ours: Path, others, runs: int) -> None:
+    """Our page and others loaded in turn: bytes, medians (ms) and their ratios to ours."""
+    times = first_pictures([ours, *others], runs)
+    size = {f: sum(p.stat().st_size for p in Path(f).rglob("*") if p.is_file()) for f in times}
+    print(f"\nside by side, {runs} loads each in turn (medians; ratio to ours):")
+    print(f"  {'page':40s} {'MB':>6s} {'first ms':>9s} {'full ms':>8s} {'load ms':>8s}")
+    for f, t in times.items():
+        cols = [statistics.median(x[j] for x in t) for j in range(3)]
+        ref = [statistics.median(x[j] for x in times[ours]) for j in range(3)]
+        print(f"  {str(f)[-40:]:40s} {size[f] / 1e6:6.3f} " + " ".join(
+            f"{c:5.0f} ({c / r:4.2f})" for c, r in zip(cols, ref)) + f"  size ({size[f] / size[ours]:4.2f})")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--against", nargs="+", default=[], metavar="DIR",
+                    help="other pages of the 61-label map, loaded in turn with ours")
     args = ap.parse_args()
     out = Path(args.out or tempfile.mkdtemp(prefix="anatomesh_bench_web_"))
     t = time.perf_counter()
@@ -86,11 +112,13 @@ def main() -> None:
         for lv in s["levels"]:
             print(f"  {lv['file']}: {lv['triangles']:,} triangles, {lv['vertices']:,} vertices, "
                   f"{lv['bytes'] / 1e6:.3f} MB ({8 * lv['bytes'] / lv['triangles']:.1f} bits/triangle)")
-        times = first_pictures(folder, args.runs)
+        times = first_pictures([folder], args.runs)[folder]
         first = sorted(x[0] for x in times)
         print(f"  first picture from file://: best {first[0]:.0f} ms, median {first[len(first) // 2]:.0f} ms "
               f"(target <= 1000 ms); full detail shown: best {min(x[1] for x in times):.0f} ms "
               f"[{args.runs} loads]")
+    if args.against:
+        compare(out / "page", args.against, args.runs)
 
 
 if __name__ == "__main__":
