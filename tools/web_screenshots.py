@@ -53,7 +53,7 @@ def main(argv=None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp, browser() as b:
         p = Page(b, write_page(Path(tmp)), size=(1100, 640))
-        go(p, "clip=coronal:0.55")
+        go(p, "clip=coronal:0.55:outline")
         p.page.screenshot(path=str(out / "web_cut_caps.png"))
         p.page.click("text=lungs over the liver")
         p.page.wait_for_timeout(800)

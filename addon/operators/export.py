@@ -10,6 +10,7 @@ import numpy as np
 
 from ...core.export.common import file_stem
 from ..scene import bridge
+from ..scene.render_gap import left_out
 
 
 def object_meshes(context, objects) -> list:
@@ -18,10 +19,9 @@ def object_meshes(context, objects) -> list:
     from ...core.model.labels import linear_to_srgb
     from ...core.model.mesh import Mesh
 
-    depsgraph = context.evaluated_depsgraph_get()
+    objects = list(objects)
     out = []
-    for o in objects:
-        v, f = bridge.world_arrays(o, depsgraph)
+    for o, (v, f) in zip(objects, bridge.shapes(context, objects)):
         out.append(Mesh(v, f, name=o.get("anatomesh_name", o.name), value=o.get("anatomesh_value"),
                         color=tuple(float(c) for c in linear_to_srgb(o.color[:3])),
                         space=str(o.get("anatomesh_space", "RAS"))))
@@ -54,7 +54,8 @@ def export_gltf(context, objects, path: str, fmt: str) -> None:
     +Z, RAS data would face −Z, so RAS objects are first turned 180° about the body axis
     (``core.export_gltf.AXES``). The objects are scaled by 0.001 (and turned) for the export
     and restored exactly afterwards, and the selection is restored; nothing in the scene
-    changes. Re-imported into Blender, the surfaces arrive in LPS (like the CLI's GLB).
+    changes. Re-imported into Blender, the surfaces arrive in LPS (like the CLI's GLB). The
+    drawn gap between touching structures (:mod:`..scene.render_gap`) is left out.
     """
     sel = [o for o in context.view_layer.objects if o.select_get()]
     active = context.view_layer.objects.active
@@ -72,10 +73,11 @@ def export_gltf(context, objects, path: str, fmt: str) -> None:
                 # objects not made by Anatomesh keep Blender's own front (−Y → glTF +Z)
                 space = str(o.get("anatomesh_space", ""))
                 o.matrix_world = to_gltf.get(space, to_gltf["LPS"]) @ o.matrix_world
-        context.view_layer.update()
-        bpy.ops.export_scene.gltf(filepath=path, export_format="GLB" if fmt == "GLB" else "GLTF_SEPARATE",
-                                  use_selection=True, export_yup=True, export_apply=True,
-                                  export_extras=True)
+        with left_out(objects):  # the shapes, not the drawn gap between touching structures
+            context.view_layer.update()
+            bpy.ops.export_scene.gltf(filepath=path, export_format="GLB" if fmt == "GLB" else "GLTF_SEPARATE",
+                                      use_selection=True, export_yup=True, export_apply=True,
+                                      export_extras=True)
     finally:
         for o in objects:
             o.matrix_basis = saved[o.name]

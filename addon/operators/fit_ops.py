@@ -41,8 +41,7 @@ class ANATOMESH_OT_print_fit(bpy.types.Operator):
             return {"CANCELLED"}
         if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when the kernels are compiled
             return {"FINISHED"}
-        depsgraph = context.evaluated_depsgraph_get()
-        meshes = [Mesh(*bridge.world_arrays(o, depsgraph), name=o.name) for o in objs]
+        meshes = [Mesh(v, f, name=o.name) for o, (v, f) in zip(objs, bridge.shapes(context, objs))]
         with ProgressReporter(context, "cut to fit") as progress:
             pieces, fixes = fit_parts(meshes, tuple(self.size), self.connectors, s.profile.lower(),
                                       s.min_wall, progress)

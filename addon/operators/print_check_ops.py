@@ -46,10 +46,7 @@ class ANATOMESH_OT_print_check(Operator):
             return {"CANCELLED"}
         if warmup.defer(self, warmup.FIXES_STEP):  # first run: again when its kernels are compiled
             return {"FINISHED"}
-        meshes = []
-        for o in objs:
-            v, f = bridge.world_arrays(o, context.evaluated_depsgraph_get())
-            meshes.append(Mesh(v, f, name=o.name))
+        meshes = [Mesh(v, f, name=o.name) for o, (v, f) in zip(objs, bridge.shapes(context, objs))]
         prof = {"name": s.profile.lower(), "min_wall": s.min_wall, "min_gap": s.min_gap}
         with ProgressReporter(context, "print check") as progress:
             rep = check_parts(meshes, prof, progress=progress)

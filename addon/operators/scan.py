@@ -203,7 +203,7 @@ def extract_to_scene(context, volume, recipe, *, looks: Optional[Dict] = None,
 def scan_to_scene(context, volume, items: Sequence, layers: Sequence, warnings: Sequence[str] = (),
                   render_method: str = "DITHERED", looks: Optional[Dict] = None) -> bpy.types.Collection:
     """Add extracted surfaces to the scene: a new collection named after the scan, one object
-    per item (its tissue class's material, its cut faces marked, a render-only gap at shared
+    per item (its tissue class's material, its cut faces marked, a drawn gap at shared
     interfaces: :mod:`..scene.render_gap`), and the live-smoothing cache.
 
     ``items``: ``(shell Mesh, layer index)`` with ``meta["vertex_ids"]`` into ``layers[k]`` (the

@@ -13,10 +13,12 @@ Only ``bpy`` and numpy here; nothing in ``core`` is imported, so the bridge work
 """
 from __future__ import annotations
 
-from typing import Optional, Tuple
+from typing import List, Optional, Tuple
 
 import bpy
 import numpy as np
+
+from .render_gap import left_out
 
 #: name of the per-vertex attribute holding the unsmoothed positions (float vector, mm)
 REST_ATTRIBUTE = "anatomesh_rest"
@@ -182,3 +184,12 @@ def world_arrays(obj: bpy.types.Object, depsgraph=None) -> Tuple[np.ndarray, np.
     if not np.allclose(m, np.eye(4)):
         v = (v.astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
     return v, f
+
+
+def shapes(context, objects) -> List[Tuple[np.ndarray, np.ndarray]]:
+    """:func:`world_arrays` of each object as evaluated (modifiers applied) but for the drawn gap
+    between touching structures (:mod:`.render_gap`): what exports and print checks read."""
+    objects = list(objects)
+    with left_out(objects):
+        depsgraph = context.evaluated_depsgraph_get()
+        return [world_arrays(o, depsgraph) for o in objects]

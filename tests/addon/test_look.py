@@ -184,9 +184,9 @@ def test_light_presets(extracted, mods):
         lights.apply_lights(sc, extracted.values(), "disco")
 
 
-def _boxes_render(mods, gap: bool, path) -> np.ndarray:
+def _boxes_render(mods, gap: bool, path, engine: str) -> np.ndarray:
     """Two boxes sharing a face at scanner-like coordinates (mm), the front one see-through,
-    seen through the front one; returns the rendered RGB (H, W, 3) in 0..1."""
+    seen through the front one, rendered by ``engine``; returns the RGB (H, W, 3) in 0..1."""
     import bmesh
 
     objects = mods["objects"]
@@ -216,7 +216,7 @@ def _boxes_render(mods, gap: bool, path) -> np.ndarray:
     cam.rotation_euler = (Vector(tuple(offset)) - cam.location).to_track_quat("-Z", "Y").to_euler()
     cam.data.lens, cam.data.clip_start, cam.data.clip_end = 80.0, 1.0, 1000.0
     mods["lights"].apply_lights(sc, coll.objects, "studio")
-    sc.render.engine = "CYCLES"
+    sc.render.engine = engine
     sc.cycles.samples, sc.cycles.use_denoising, sc.cycles.use_adaptive_sampling = 32, False, False
     sc.render.resolution_x, sc.render.resolution_y = 120, 80
     sc.render.filepath = str(path)
@@ -227,7 +227,8 @@ def _boxes_render(mods, gap: bool, path) -> np.ndarray:
     return px
 
 
-def test_no_speckle_where_shells_touch(addon, mods, tmp_path):
+@pytest.mark.parametrize("engine", ["CYCLES", "BLENDER_WORKBENCH"])  # renders; the Solid view
+def test_no_speckle_where_shells_touch(addon, mods, tmp_path, engine):
     """Through the see-through box, the shared face is one even colour with the render gap; without
     it the two coincident faces fight (triangles of the front box's colour show through): the
     speckle is what a 5 x 5 median filter removes."""
@@ -236,12 +237,39 @@ def test_no_speckle_where_shells_touch(addon, mods, tmp_path):
     window = (slice(30, 60), slice(45, 75))  # the shared face's middle, seen through the front box
     speckle = {}
     for gap in (True, False):
-        px = _boxes_render(mods, gap, tmp_path / f"boxes_{gap}.png")
+        px = _boxes_render(mods, gap, tmp_path / f"boxes_{gap}.png", engine)
         green_minus_red = px[..., 1] - px[..., 0]
         residue = np.abs(green_minus_red - median_filter(green_minus_red, 5))[window]
         speckle[gap] = float(np.percentile(residue, 95))
     assert speckle[True] < 0.5 * speckle[False]
     assert speckle[True] < 0.08
+
+
+def test_the_viewport_draws_the_gap_and_exports_read_the_shapes(addon, extracted, mods):
+    """The viewport's evaluation moves each surface inward by the gap (so Solid view and Material
+    Preview draw no z-fighting either); exports and print checks read the surfaces unmoved, and
+    the gap is on again afterwards."""
+    bridge = importlib.import_module(f"{addon.__name__}.addon.scene.bridge")
+    export = importlib.import_module(f"{addon.__name__}.addon.operators.export")
+    objs = list(extracted.values())
+    gap = objs[0].modifiers[mods["gap"].GAP_MODIFIER].strength
+    assert gap < 0 and all(o.modifiers[mods["gap"].GAP_MODIFIER].show_viewport for o in objs)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    for o in objs:
+        base, faces = bridge.world_arrays(o)
+        drawn, drawn_faces = bridge.world_arrays(o, depsgraph)
+        normals = np.empty(3 * len(o.data.vertices), np.float32)
+        o.data.vertices.foreach_get("normal", normals)
+        moved = np.einsum("ij,ij->i", drawn - base, normals.reshape(-1, 3))
+        assert np.array_equal(faces, drawn_faces) and moved == pytest.approx(gap, abs=1e-4)
+    shapes = bridge.shapes(bpy.context, objs)
+    meshes = export.object_meshes(bpy.context, objs)
+    for o, (v, f), m in zip(objs, shapes, meshes):
+        base, faces = bridge.world_arrays(o)
+        assert np.array_equal(v, base) and np.array_equal(m.vertices, base) and np.array_equal(f, faces)
+        assert o.modifiers[mods["gap"].GAP_MODIFIER].show_viewport
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert not np.array_equal(bridge.world_arrays(objs[0], depsgraph)[0], bridge.world_arrays(objs[0])[0])
 
 
 # ---------------------------------------------------------------------------------------------

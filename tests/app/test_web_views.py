@@ -101,6 +101,31 @@ def test_every_cut_structure_gets_a_cap_and_neighbours_meet_on_it(page, sample_r
     assert shot.std() > 10
 
 
+def test_outlines_trace_each_cut_structure_on_the_cut(page, sample_run):
+    """With outlines, only pixels along the boundaries of the section change, and they darken;
+    every cut structure has its outline, and outlines go with the cut."""
+    _go(page, "clip=coronal:0.5")
+    plain = page.pixels().astype(int)
+    _go(page, "clip=coronal:0.5:outline")
+    lined = page.pixels().astype(int)
+    changed = np.abs(lined - plain).max(-1) > 20
+    assert changed.sum() > 2000  # the outlines of some 30 sections
+    on_anatomy = changed & (np.abs(plain - [29, 32, 38]).max(-1) > 20)  # (at the silhouette: background)
+    assert (luminance(lined[on_anatomy]) < luminance(plain[on_anatomy])).mean() > 0.9
+    edge = np.zeros_like(changed)  # where the plain picture changes colour: boundaries
+    for axis in (0, 1):
+        step = np.abs(np.diff(plain, axis=axis)).max(-1) > 12
+        edge[tuple(slice(None, -1) if a == axis else slice(None) for a in (0, 1))] |= step
+        edge[tuple(slice(1, None) if a == axis else slice(None) for a in (0, 1))] |= step
+    near_edge = ~_erode(~edge, 2)  # within 2 px of a boundary
+    assert near_edge[changed].mean() > 0.9
+    outlined = page.js("anatomesh.viewer.items.filter(it => it.cut && it.cap.outline.visible"
+                       " && it.cap.outline.geometry.getAttribute('position').count > 0).length")
+    assert outlined == page.js("anatomesh.viewer.items.filter(it => it.cut).length") > 15
+    _go(page, "")
+    assert page.js("anatomesh.viewer.items.every(it => !(it.cap && it.cap.outline && it.cap.outline.visible))")
+
+
 def _shared_faces(a: Mesh, b: Mesh) -> np.ndarray:
     """Mask of ``b``'s triangles that ``a`` has too (the same three vertex positions)."""
     key = lambda m: [tuple(sorted(map(tuple, np.round(m.vertices[f], 6)))) for f in m.faces]  # noqa: E731
@@ -161,7 +186,7 @@ def test_a_see_through_lung_over_the_liver_shows_the_interface_once(chromium, tm
 # ---------------------------------------------------------------------------------------------
 ROUND_TRIPS = [
     "hide=colon,spleen&opacity=liver:0.35,stomach:0.6&clip=axial:0.425:flip&view=left",
-    "opacity=lung_lower_lobe_right:0&clip=sagittal:0.3&camera=10.5,140,160.25;0.6,0,0.8;0,1,0;1.75"
+    "opacity=lung_lower_lobe_right:0&clip=sagittal:0.3:outline&camera=10.5,140,160.25;0.6,0,0.8;0,1,0;1.75"
     "&measure=-80.5,130,200;-20,140.125,210",
     "view=superior&measure=12,150,180",
 ]
@@ -172,7 +197,7 @@ def _page_state(page):
         hidden: [...document.querySelectorAll('input[data-structure]')].filter(e => !e.checked).map(e => e.dataset.structure),
         opacity: Object.fromEntries([...document.querySelectorAll('input[data-opacity]')].map(e => [e.dataset.opacity, +e.value])),
         clip: [document.getElementById('clip-axis').value, +document.getElementById('clip-at').value,
-               document.getElementById('clip-flip').checked],
+               document.getElementById('clip-flip').checked, document.getElementById('clip-outline').checked],
         view: document.getElementById('view-name').value,
         camera: anatomesh.viewer.getCamera(), measure: anatomesh.measure.points(), hash: location.hash})""")
 
@@ -189,8 +214,8 @@ def test_every_url_key_round_trips(page, fragment):
         name, a = item.rsplit(":", 1)
         assert st["opacity"][name] == pytest.approx(float(a))
     if "clip" in keys:
-        plane, f, *flip = keys["clip"].split(":")
-        assert st["clip"] == [plane, pytest.approx(float(f)), flip == ["flip"]]
+        plane, f, *flags = keys["clip"].split(":")
+        assert st["clip"] == [plane, pytest.approx(float(f)), "flip" in flags, "outline" in flags]
     assert st["view"] == keys.get("view", "")
     if "camera" in keys:
         t, d, u, z = keys["camera"].split(";")

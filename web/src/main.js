@@ -135,10 +135,11 @@ function wirePanel(viewer, on) {
   });
   const clip = () => {
     const plane = $('clip-axis').value;
-    viewer.clipping = plane ? { plane, fraction: +$('clip-at').value, flip: $('clip-flip').checked } : null;
+    viewer.clipping = plane ? { plane, fraction: +$('clip-at').value, flip: $('clip-flip').checked,
+      outline: $('clip-outline').checked } : null;
     on.change();
   };
-  for (const id of ['clip-axis', 'clip-at', 'clip-flip']) $(id).addEventListener('input', clip);
+  for (const id of ['clip-axis', 'clip-at', 'clip-flip', 'clip-outline']) $(id).addEventListener('input', clip);
 }
 
 /** Draw the finest level arrived so far, now (once the viewer and the decoder are ready). */

@@ -1,11 +1,12 @@
 // The page's view as text in the URL's fragment, so a view can be bookmarked and shared:
 //
-//   #hide=NAME,…&opacity=NAME:A,…&clip=axial|coronal|sagittal:F[:flip]
+//   #hide=NAME,…&opacity=NAME:A,…&clip=axial|coronal|sagittal:F[:flip][:outline]
 //    &view=anterior|posterior|left|right|superior|inferior&camera=TX,TY,TZ;DX,DY,DZ;UX,UY,UZ;ZOOM
 //    &measure=X,Y,Z[;X,Y,Z]
 //
 // Names are the structure names of the page, URL-encoded. F is the plane's place along the axis,
-// 0..1 of the model's extent; `flip` keeps the other side. The camera is its target T (mm), the
+// 0..1 of the model's extent; `flip` keeps the other side, `outline` outlines each structure on
+// the cut. The camera is its target T (mm), the
 // direction D from the target to the eye, the screen's up U and the zoom (orthographic view).
 // Measured points are in mm, the page's display frame (+x patient left, +y superior, +z
 // anterior). Pure functions: tested with node's test runner.
@@ -49,7 +50,7 @@ export function formatState(state) {
   if (op.length) parts.push(`opacity=${op.map(([n, a]) => `${enc(n)}:${num(a, 2)}`).join(',')}`);
   if (state.clip) {
     const c = state.clip;
-    parts.push(`clip=${c.plane}:${num(c.fraction, 3)}${c.flip ? ':flip' : ''}`);
+    parts.push(`clip=${c.plane}:${num(c.fraction, 3)}${c.flip ? ':flip' : ''}${c.outline ? ':outline' : ''}`);
   }
   if (state.view) parts.push(`view=${state.view}`);
   if (state.camera) {
@@ -93,13 +94,14 @@ function readKey(state, key, value) {
       state.opacity[dec(item.slice(0, k))] = a;
     }
   } else if (key === 'clip') {
-    const [plane, f, flip, ...rest] = value.split(':');
+    const [plane, f, ...flags] = value.split(':');
     const fraction = Number(f);
+    const known = ['flip', 'outline'].filter((x) => flags.includes(x));
     if (!(plane in CLIP_AXES) || f === undefined || f === '' || !(fraction >= 0 && fraction <= 1)
-        || (flip !== undefined && flip !== 'flip') || rest.length) {
-      throw new Error(`axial|coronal|sagittal:F with F in 0..1 (optional :flip), got "${value}"`);
+        || known.join(':') !== flags.join(':')) {
+      throw new Error(`axial|coronal|sagittal:F with F in 0..1 (then optional :flip, :outline), got "${value}"`);
     }
-    state.clip = { plane, fraction, flip: flip === 'flip' };
+    state.clip = { plane, fraction, flip: flags.includes('flip'), outline: flags.includes('outline') };
   } else if (key === 'view') {
     if (!(value in VIEWS)) throw new Error(`one of ${Object.keys(VIEWS).join(', ')}, got "${value}"`);
     state.view = value;

@@ -63,7 +63,11 @@ export function wireUrlState(viewer, { sync, measure, refresh }) {
     }
     viewer.clipping = st.clip;
     $('clip-axis').value = st.clip ? st.clip.plane : '';
-    if (st.clip) { $('clip-at').value = st.clip.fraction; $('clip-flip').checked = st.clip.flip; }
+    if (st.clip) {
+      $('clip-at').value = st.clip.fraction;
+      $('clip-flip').checked = st.clip.flip;
+      $('clip-outline').checked = st.clip.outline;
+    }
     view = st.view;
     cameraSet = !!st.camera;
     if (st.camera) viewer.setCamera(st.camera);

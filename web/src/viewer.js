@@ -84,7 +84,7 @@ export class Viewer {
     this.controls.addEventListener('change', () => this.requestRender());
     this.uniforms = { uOriented: { value: 0 }, uOrientedExponent: { value: 0.7 } };
     this.plane = new Plane(new Vector3(0, 0, -1), 0);
-    this.clipping = null;           // {plane: 'axial'|'coronal'|'sagittal', fraction, flip} or null
+    this.clipping = null;           // {plane: 'axial'|'coronal'|'sagittal', fraction, flip, outline} or null
     this.showDistance = false;
     this.level = -1;                // the finest level of detail shown so far
     this.geometries = new Map();    // geometry id → BufferGeometry, of that level
@@ -231,7 +231,8 @@ export class Viewer {
       it.back.visible = it.front.visible && seeThrough;
       if (this.clipping && !it.cap) it.cap = new Cap(this.root, it.color, this.plane);
       it.cut = !!it.cap && it.cap.update(it.front.geometry, axis, -this.plane.constant * this.plane.normal.getComponent(axis),
-        { on: !!this.clipping && it.front.visible, opacity: it.opacity, order: 1 + 3 * i });
+        { on: !!this.clipping && it.front.visible, opacity: it.opacity, order: 1 + 3 * i,
+          outline: !!this.clipping && this.clipping.outline });
     });
     this.requestRender();
   }
