@@ -52,7 +52,7 @@ VIEWER_DIR = Path(__file__).resolve().parent / "viewer"
 VIEWER_FILES = ("viewer.js", "LICENSES.txt")
 PAGE, SCENE, DATA = "index.html", "scene.js", "data"
 #: format tag of scene.js (the viewer checks it)
-SCENE_FORMAT = "anatomesh-web/1"
+SCENE_FORMAT = "anatomesh-web/2"
 
 
 @dataclass

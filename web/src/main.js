@@ -182,7 +182,7 @@ function start() {
   performance.mark('anatomesh:start');
   const scene = window.ANATOMESH_SCENE;
   if (!scene) { setStatus('scene.js is missing: keep the page\'s folder together'); return; }
-  if (scene.format !== 'anatomesh-web/1') { setStatus(`unknown scene format ${scene.format}`); return; }
+  if (scene.format !== 'anatomesh-web/2') { setStatus(`unknown scene format ${scene.format}`); return; }
   const viewer = new Viewer($('view'), scene, () => updateScale(viewer));
   api.viewer = viewer;
   api.screenBox = (name) => viewer.screenBox(name);
