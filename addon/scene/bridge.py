@@ -9,7 +9,8 @@ the ``position`` attribute.
 Units: one Blender unit is one millimetre (see :func:`anatomesh.addon.scene.objects.setup_units`), so the
 arrays go in and come out unchanged, in mm, in the space recorded on the object.
 
-Only ``bpy`` and numpy here; nothing in ``core`` is imported, so the bridge works on any arrays.
+Only ``bpy``, numpy and the switch of the drawn gap (:mod:`.render_gap`) here; nothing in ``core``
+is imported, so the bridge works on any arrays.
 """
 from __future__ import annotations
 
